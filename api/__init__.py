@@ -1,0 +1,1 @@
+"""api (built by a later issue)."""

@@ -1,0 +1,88 @@
+"""Accuracy of the standard chain: generated labelled loops and the real ISDB loops.
+
+Prints the confusion matrix of the generated case matrix (simulator.cases) and the ISDB
+table loop by loop (needs ../shared/data; skipped with a note when absent).
+
+    python benchmarks/diagnosis_accuracy.py [--seeds 1 2] [--lengths 1000 5000 20000] [-v]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from isdb import ACCEPTED, load_isdb  # noqa: E402
+
+from plantcheck.diagnosis import diagnose  # noqa: E402
+from plantcheck.simulator.cases import generate_cases  # noqa: E402
+from plantcheck.simulator.loop import simulate_loop  # noqa: E402
+
+
+def generated(seeds: list[int], lengths: tuple[int, ...], verbose: bool) -> float:
+    conf: collections.Counter[tuple[str, str]] = collections.Counter()
+    t0 = time.perf_counter()
+    for seed in seeds:
+        for c in generate_cases(seed=seed, lengths=lengths):
+            r = simulate_loop(c.config)
+            d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type)
+            conf[(c.cause, d.cause)] += 1
+            if verbose and d.cause != c.cause:
+                o = d.oscillation or {}
+                print(
+                    f"  {c.name:55s} -> {d.cause:26s} P={o.get('period_s') or 0:7.1f} "
+                    f"r={o.get('regularity') or 0:6.2f} {d.stiction['tests']} "
+                    f"ii={d.indices.get('idle_index')} | {d.notes[-1][:70] if d.notes else ''}"
+                )
+    truth = sorted({a for a, _ in conf})
+    preds = sorted({b for _, b in conf} | set(truth))
+    print(f"generated cases: {sum(conf.values())} in {time.perf_counter() - t0:.1f} s")
+    print("true \\ predicted".ljust(22) + "".join(p[:12].rjust(13) for p in preds) + "   recall")
+    total_ok = 0
+    for a in truth:
+        row = [conf[(a, b)] for b in preds]
+        n = sum(row)
+        total_ok += conf[(a, a)]
+        print(a.ljust(22) + "".join(str(v).rjust(13) for v in row) + f"   {conf[(a, a)] / n:6.2f}")
+    acc = total_ok / sum(conf.values())
+    print(f"overall accuracy {acc:.3f}")
+    return acc
+
+
+def isdb() -> None:
+    loops = load_isdb()
+    if not loops:
+        print("ISDB data not found at ../shared/data/isdb-partial-npokhappy: skipped")
+        return
+    right = labelled = 0
+    print(f"{'loop':7s} {'type':11s} {'Ts':>5s} {'label':22s} {'cause':26s} ok  tests")
+    for lp in loops:
+        d = diagnose(lp.pv, lp.op, lp.ts, loop_type=lp.loop_type)
+        acc = ACCEPTED.get(lp.label)
+        good = acc is not None and d.cause in acc
+        labelled += acc is not None
+        right += good
+        mark = "yes" if good else ("no " if acc is not None else " - ")
+        print(
+            f"{lp.name:7s} {lp.loop_type:11s} {lp.ts:5g} {lp.label or '(none)':22s} "
+            f"{d.cause:26s} {mark} {d.stiction['tests']}"
+        )
+    print(f"ISDB: {right} of {labelled} labelled loops right")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--lengths", type=int, nargs="+", default=[1000, 5000, 20000])
+    ap.add_argument("-v", "--verbose", action="store_true")
+    args = ap.parse_args()
+    generated(args.seeds, tuple(args.lengths), args.verbose)
+    isdb()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""connectors (built by a later issue)."""

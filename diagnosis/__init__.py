@@ -1,0 +1,25 @@
+"""Control-loop diagnosis: pure numpy/scipy functions, no I/O (methods.md).
+
+The public entry points are :func:`diagnose` (the PCU standard chain) and
+:func:`detect_oscillation` (oscillation test on any one signal).
+"""
+
+from plantcheck.diagnosis.chain import ChainParams, diagnose
+from plantcheck.diagnosis.oscillation import (
+    OscillationParams,
+    OscillationResult,
+    detect_oscillation,
+)
+from plantcheck.diagnosis.result import CAUSES, Diagnosis
+from plantcheck.diagnosis.stiction_vote import LOOP_TYPES
+
+__all__ = [
+    "CAUSES",
+    "LOOP_TYPES",
+    "ChainParams",
+    "Diagnosis",
+    "OscillationParams",
+    "OscillationResult",
+    "detect_oscillation",
+    "diagnose",
+]

@@ -1,0 +1,101 @@
+"""Aggressive tuning or external disturbance? (methods.md §3.2 notes, FAM module) [R].
+
+When the loop oscillates and the stiction vote does not find stiction, the oscillation comes
+from the loop itself (too aggressive a controller, oscillating near its ultimate frequency)
+or from outside (a disturbance the controller only partly rejects). The controller relation
+OP = −C(q)·PV holds in both cases, so the phase between OP and PV at the oscillation frequency
+tells where on the controller's frequency response the oscillation sits: the OP–PV
+cross-correlation (Horch 1999) is even when the oscillation is fast relative to the
+integral time (proportional action dominates: the loop's own frequency), and odd when it is
+slow (integral action dominates: typical of a slow external disturbance). The same reading,
+expressed as the period against the identified integral time (Tp/Ti), is used when the
+regression of the controller is trustworthy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from plantcheck.diagnosis.horch import HorchParams, horch_ccf
+from plantcheck.diagnosis.oscillation import OscillationResult
+from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.stiction_vote import VoteResult
+from plantcheck.diagnosis.test_result import StictionTestResult
+from plantcheck.diagnosis.tuning import PIEstimate
+
+
+@dataclass(frozen=True)
+class SplitParams:
+    """Thresholds of the tuning/disturbance split [R, calibrated on generated loops]."""
+
+    even_dphi: float = math.pi / 3
+    """CCF phase index at or below this -> oscillation at the loop's own frequency."""
+    odd_dphi: float = math.pi / 2
+    """CCF phase index at or above this -> slow oscillation: external disturbance."""
+    min_controller_fit: float = 0.5
+    """R² of the PI regression needed to use Tp/Ti."""
+    tuning_max_tp_ti: float = 6.0
+    """Tp/Ti at or below this supports aggressive tuning (methods §3.2 suggests [1, 5]·Ti)."""
+
+
+@dataclass(frozen=True)
+class SplitResult:
+    """Cause, confidence and the reason in words."""
+
+    cause: str
+    confidence: float
+    reason: str
+
+
+def split_cause(
+    op: FloatArray,
+    pv: FloatArray,
+    ts: float,
+    osc: OscillationResult,
+    tests: dict[str, StictionTestResult],
+    vote_result: VoteResult,
+    pi: PIEstimate,
+    loop_type: str,
+    params: SplitParams | None = None,
+) -> SplitResult:
+    """Decide between aggressive tuning, external disturbance and unknown cause."""
+    p = params or SplitParams()
+    assert osc.period_s is not None
+    ccf = tests.get("cross_correlation") or horch_ccf(op, pv, ts, osc.period_s, HorchParams())
+    dphi = ccf.value
+    tp_ti = None
+    if pi.ti_s and pi.fit >= p.min_controller_fit:
+        tp_ti = osc.period_s / pi.ti_s
+    if vote_result.decision == "undecided" and vote_result.score > 0:
+        return SplitResult(
+            "oscillation_unknown_cause",
+            0.5,
+            f"stiction tests inconclusive ({vote_result.n_stiction} for, "
+            f"{vote_result.n_no_stiction} against)",
+        )
+    if dphi is None:
+        return SplitResult(
+            "oscillation_unknown_cause", 0.5, "OP–PV phase could not be read from the CCF"
+        )
+    ratio_txt = f", Tp/Ti = {tp_ti:.1f}" if tp_ti is not None else ""
+    if dphi <= p.even_dphi and (tp_ti is None or tp_ti <= p.tuning_max_tp_ti):
+        return SplitResult(
+            "aggressive_tuning",
+            0.7,
+            f"linear oscillation at the loop's own frequency (OP–PV phase index {dphi:.2f}"
+            f"{ratio_txt})",
+        )
+    if dphi >= p.odd_dphi or (tp_ti is not None and tp_ti > p.tuning_max_tp_ti):
+        return SplitResult(
+            "external_disturbance",
+            0.7,
+            f"slow oscillation against the controller time scale, no stiction "
+            f"(OP–PV phase index {dphi:.2f}{ratio_txt})",
+        )
+    return SplitResult(
+        "oscillation_unknown_cause",
+        0.5,
+        f"oscillation without stiction, but period not clearly tied to the loop "
+        f"(OP–PV phase index {dphi:.2f}{ratio_txt})",
+    )

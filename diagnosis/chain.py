@@ -1,0 +1,208 @@
+"""The PCU standard diagnosis chain (methods.md §3.2), SP/PV/OP only.
+
+IM  window checks (``window.check_window``): data quality, manual mode, saturation, SP steps;
+AIM oscillation test on the control error (Hägglund + Thornhill) and, when the loop does not
+    oscillate, Hägglund's idle index for sluggish control;
+FAM period and shape of the oscillation against the controller's own time scale;
+SAM the applicable stiction tests and their vote (``stiction_vote``);
+then the split between aggressive tuning and an external disturbance (``cause_split``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
+from plantcheck.diagnosis.cause_split import SplitParams, split_cause
+from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
+from plantcheck.diagnosis.oscillation import (
+    OscillationParams,
+    OscillationResult,
+    detect_oscillation,
+)
+from plantcheck.diagnosis.result import Diagnosis, action_for
+from plantcheck.diagnosis.shape_tests import (
+    ShapeParams,
+    area_ratio,
+    curve_fit_index,
+    relay_index,
+    significant_half_cycles,
+)
+from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average
+from plantcheck.diagnosis.stiction_vote import (
+    LOOP_TYPES,
+    VoteParams,
+    VoteResult,
+    applicable_tests,
+    is_integrating,
+    vote,
+)
+from plantcheck.diagnosis.test_result import StictionTestResult
+from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_index
+from plantcheck.diagnosis.window import BoolArray, WindowParams, check_window
+
+
+@dataclass(frozen=True)
+class ChainParams:
+    """Every threshold of the standard chain, grouped by module (defaults: methods.md §10)."""
+
+    window: WindowParams = field(default_factory=WindowParams)
+    oscillation: OscillationParams = field(default_factory=OscillationParams)
+    shape: ShapeParams = field(default_factory=ShapeParams)
+    horch: HorchParams = field(default_factory=HorchParams)
+    bicoherence: BicoherenceParams = field(default_factory=BicoherenceParams)
+    vote: VoteParams = field(default_factory=VoteParams)
+    tuning: TuningParams = field(default_factory=TuningParams)
+    split: SplitParams = field(default_factory=SplitParams)
+
+
+def run_stiction_tests(
+    e: FloatArray,
+    op: FloatArray,
+    pv: FloatArray,
+    ts: float,
+    osc: OscillationResult,
+    loop_type: str,
+    params: ChainParams,
+) -> dict[str, StictionTestResult]:
+    """Run every stiction test that applies to ``loop_type`` on an oscillating window."""
+    assert osc.period_s is not None
+    period = osc.period_s
+    width = max(1, round(period / ts / 20.0))
+    band = params.oscillation.noise_band * osc.noise_sigma / np.sqrt(width)
+    min_amp = 0.3 * (osc.amplitude or 0.0)
+    integrating = is_integrating(loop_type)
+    names = applicable_tests(loop_type)
+    out: dict[str, StictionTestResult] = {}
+    es = moving_average(detrend(e), width)
+    hc_e = significant_half_cycles(es, ts, band, min_amp, params.shape.min_half_samples)
+    if "relay" in names:
+        out["relay"] = relay_index(hc_e, params.shape)
+    if "curve_fit" in names:
+        sig = pv if integrating else op
+        ss = moving_average(detrend(sig), width)
+        amp = 0.3 * float(np.mean(np.abs(ss))) * np.sqrt(2.0)
+        hc_s = significant_half_cycles(ss, ts, 0.1 * float(np.std(ss)), amp)
+        out["curve_fit"] = curve_fit_index(hc_s, params.shape)
+    if "cross_correlation" in names:
+        out["cross_correlation"] = horch_ccf(op, pv, ts, period, params.horch)
+    if "histogram" in names:
+        out["histogram"] = horch_histogram(pv, ts, period, params.horch)
+    if "bicoherence" in names:
+        out["bicoherence"] = bicoherence_test(e, ts, period, params.bicoherence)
+    if "area_ratio" in names:
+        out["area_ratio"] = area_ratio(es, hc_e, params.shape)
+    return out
+
+
+def _tests_json(tests: dict[str, StictionTestResult]) -> dict[str, float | str | None]:
+    return {name: (r.label if r.label is not None else r.value) for name, r in tests.items()}
+
+
+def _confidence_from_vote(v: VoteResult, stiction: bool) -> float:
+    """Confidence of a vote-based verdict: 0.5 at the threshold, 1.0 when all tests agree."""
+    if v.n_tests == 0:
+        return 0.5
+    agree = v.n_stiction if stiction else v.n_no_stiction
+    return float(min(0.95, 0.5 + 0.5 * agree / v.n_tests))
+
+
+def diagnose(
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    sp: FloatArray | None = None,
+    auto: BoolArray | None = None,
+    loop_type: str = "other",
+    params: ChainParams | None = None,
+) -> Diagnosis:
+    """Run the standard chain on one window.
+
+    Parameters
+    ----------
+    pv, op, sp:
+        Process variable and set point (engineering units), controller output (% 0–100);
+        NaN marks a gap. ``sp`` None means a constant set point.
+    ts:
+        Sample time, s.
+    auto:
+        True where the loop is in automatic; None means always.
+    loop_type:
+        One of ``flow``, ``pressure``, ``level``, ``temperature``, ``composition``, ``other``.
+    """
+    if loop_type not in LOOP_TYPES:
+        raise ValueError(f"loop_type must be one of {', '.join(LOOP_TYPES)}, not {loop_type!r}")
+    p = params or ChainParams()
+    pv = np.asarray(pv, dtype=np.float64)
+    op = np.asarray(op, dtype=np.float64)
+    n = int(pv.size)
+    win = check_window(pv, op, sp, auto, p.window)
+    diag = Diagnosis(
+        loop_type=loop_type,
+        chain="standard",
+        samples=n,
+        sample_time_s=ts,
+        cause="ok",
+        confidence=0.0,
+        oscillating=False,
+        notes=list(win.notes),
+    )
+    diag.indices["hagglund_load_count"] = None
+    diag.indices["idle_index"] = None
+    diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
+    if win.verdict is not None:
+        diag.cause = win.verdict
+        diag.confidence = 0.9
+        diag.actions = [action_for(win.verdict)]
+        return diag
+
+    a, b = win.segment
+    pv_s, op_s, sp_s = win.pv[a:b], win.op[a:b], win.sp[a:b]
+    e = sp_s - pv_s
+    pi = identify_pi(op_s, pv_s, sp_s, ts)
+    diag.indices["controller_fit"] = pi.fit
+    diag.indices["controller_ti_s"] = pi.ti_s if pi.fit >= p.tuning.pi_min_fit else None
+    osc = detect_oscillation(e, ts, p.oscillation)
+    diag.indices["hagglund_load_count"] = osc.load_count
+    diag.oscillating = osc.oscillating
+
+    if not osc.oscillating:
+        diag.notes.append(f"no sustained oscillation: {osc.reason}")
+        ti = pi.ti_s if (pi.ti_s and pi.fit >= p.tuning.pi_min_fit) else None
+        tf = p.tuning.idle_filter_ti * ti if ti else None
+        ii = idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
+        diag.indices["idle_index"] = ii
+        if ii is not None and ii > p.tuning.idle_limit:
+            diag.cause = "sluggish_tuning"
+            diag.confidence = float(min(0.9, 0.5 + (ii - p.tuning.idle_limit)))
+        else:
+            diag.cause = "ok"
+            diag.confidence = 0.7 if ii is not None else 0.6
+        diag.actions = [action_for(diag.cause)]
+        return diag
+
+    diag.oscillation = {
+        "period_s": osc.period_s,
+        "amplitude": osc.amplitude,
+        "regularity": osc.regularity,
+    }
+    tests = run_stiction_tests(e, op_s, pv_s, ts, osc, loop_type, p)
+    v = vote(list(tests.values()), p.vote)
+    diag.stiction["tests"] = _tests_json(tests)
+    diag.stiction["detected"] = v.decision == "stiction"
+    diag.indices["stiction_vote"] = v.score
+    if v.decision == "stiction":
+        diag.cause = "stiction"
+        diag.confidence = _confidence_from_vote(v, True)
+        diag.notes.append(
+            f"stiction: {v.n_stiction} of {v.n_tests} tests agree; S and J not quantified yet"
+        )
+    else:
+        split = split_cause(op_s, pv_s, ts, osc, tests, v, pi, loop_type, p.split)
+        diag.cause = split.cause
+        diag.confidence = split.confidence
+        diag.notes.append(split.reason)
+    diag.actions = [action_for(diag.cause)]
+    return diag

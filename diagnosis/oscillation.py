@@ -1,0 +1,212 @@
+"""Oscillation detection (methods.md §2).
+
+- Hägglund's IAE load-disturbance counter (Hägglund 1995, CEP 3:1543) with exponential
+  forgetting over a supervision time T_sup;
+- Thornhill, Huang & Zhang (2003, JPC 13:91) regularity of the ACF zero crossings;
+- the composite used by the service (methods §2.5): regular ACF (r > 1) AND enough Hägglund
+  loads AND an amplitude clear of the measurement noise.
+
+Times are in seconds, amplitudes in the units of the analysed signal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    detrend,
+    fft_acf,
+    half_cycles,
+    interpolated_zero_crossings,
+    moving_average,
+    noise_sigma,
+)
+
+
+@dataclass(frozen=True)
+class OscillationParams:
+    """Oscillation-test parameters (methods.md §10)."""
+
+    regularity_limit: float = 1.0
+    """Thornhill r above which the oscillation is regular ([V] controllerPlotFcn3.m)."""
+    n_half: int = 10
+    """ACF half-periods used (intervals 2–11, [V])."""
+    min_half: int = 4
+    """Fewest ACF half-periods for a verdict ([V])."""
+    n_lim: int = 10
+    """Hägglund load count that raises the alarm ([L]/[V] _OsciFinder.py)."""
+    tsup_periods: float = 50.0
+    """Supervision time T_sup in oscillation periods (T_sup = 50·T_u, [M])."""
+    load_fraction: float = 0.5
+    """In windows shorter than T_sup, the alarm needs this share of half-cycles as loads [R]."""
+    min_loads: int = 4
+    """And never fewer loads than this [R]."""
+    noise_band: float = 2.0
+    """Zero-crossing hysteresis, in multiples of the noise σ ([R] methods §2.1 notes)."""
+    amplitude_noise_ratio: float = 3.0
+    """Acceptable amplitude a = this × noise σ when the PV range is unknown [R]."""
+    amplitude_range_fraction: float = 0.01
+    """Acceptable amplitude a = this × PV range when the range is known (a = 1 %, [L])."""
+    min_band_power: float = 0.3
+    """Share of variance within [0.5, 2]·f_osc required for a sustained oscillation [R]."""
+
+
+@dataclass(frozen=True)
+class RegularityResult:
+    """Thornhill ACF regularity: ``r`` (dimensionless), mean period and its std (s)."""
+
+    regularity: float
+    period_s: float
+    period_std_s: float
+    n_intervals: int
+
+
+@dataclass(frozen=True)
+class HagglundResult:
+    """Hägglund load counter: loads in the window and the largest forgetting-counter value."""
+
+    load_count: int
+    max_counter: float
+    n_half_cycles: int
+
+
+@dataclass(frozen=True)
+class OscillationResult:
+    """Composite oscillation verdict on one signal (units of the signal, seconds)."""
+
+    oscillating: bool
+    period_s: float | None
+    amplitude: float | None
+    regularity: float | None
+    load_count: int
+    band_power: float
+    noise_sigma: float
+    reason: str
+
+
+def thornhill_regularity(
+    x: FloatArray, ts: float, n_half: int = 10, min_half: int = 4, max_lag_fraction: float = 0.75
+) -> RegularityResult | None:
+    """Regularity of an oscillation from the zero crossings of its ACF (Thornhill et al. 2003).
+
+    r = (1/3)·mean(Tp)/std(Tp) over ACF half-periods 2…(n_half+1); None when fewer than
+    ``min_half`` intervals exist (no oscillation can be asserted). The ACF is read up to
+    ``max_lag_fraction`` of the record, so that short records of slow oscillations still show
+    enough half-periods.
+    """
+    acf = fft_acf(detrend(x), max(8, int(max_lag_fraction * x.size)))
+    zc = interpolated_zero_crossings(acf)
+    halves = np.diff(zc)[:n_half]
+    if halves.size < min_half:
+        return None
+    tp = 2.0 * halves * ts
+    std = float(np.std(tp, ddof=1))
+    mean = float(np.mean(tp))
+    r = mean / (3.0 * std) if std > 0 else math.inf
+    return RegularityResult(min(r, 1e3), mean, std, int(halves.size))
+
+
+def hagglund_loads(
+    e: FloatArray,
+    ts: float,
+    iae_lim: float,
+    tsup_s: float,
+    band: float = 0.0,
+) -> HagglundResult:
+    """Hägglund (1995) load detector over a window.
+
+    A half-cycle of the control error ``e`` (between hysteresis-confirmed zero crossings) is a
+    load when its IAE (units·s) exceeds ``iae_lim`` = 2a/ω. Loads feed the counter
+    x(k) = γ·x(k−1) + l(k), γ = 1 − ts/T_sup.
+    """
+    hc = half_cycles(e - e.mean(), ts, band=band, min_samples=1, n_points=4)
+    loads = hc.stops[hc.iae > iae_lim]
+    impulses = np.zeros(e.size)
+    impulses[np.clip(loads, 0, e.size - 1)] = 1.0
+    gamma = max(0.0, 1.0 - ts / tsup_s)
+    counter = lfilter([1.0], [1.0, -gamma], impulses)
+    return HagglundResult(int(loads.size), float(counter.max(initial=0.0)), hc.count)
+
+
+def _band_power(x: FloatArray, ts: float, period_s: float) -> float:
+    """Share of the variance of ``x`` within [0.5, 2]× the oscillation frequency."""
+    spec = np.abs(np.fft.rfft(x - x.mean())) ** 2
+    f = np.fft.rfftfreq(x.size, ts)
+    total = float(spec[1:].sum())
+    if total <= 0:
+        return 0.0
+    f0 = 1.0 / period_s
+    return float(spec[(f >= 0.5 * f0) & (f <= 2.0 * f0)].sum()) / total
+
+
+def detect_oscillation(
+    x: FloatArray,
+    ts: float,
+    params: OscillationParams | None = None,
+    pv_range: float | None = None,
+) -> OscillationResult:
+    """Composite oscillation test on one signal (methods.md §2.5).
+
+    Parameters
+    ----------
+    x:
+        Signal (control error for a loop, or any recorded column), no NaN.
+    ts:
+        Sample time, s.
+    pv_range:
+        Transmitter range in the units of ``x``; when known, Hägglund's acceptable amplitude is
+        1 % of it, otherwise a multiple of the measurement noise.
+    """
+    p = params or OscillationParams()
+    xd = detrend(np.asarray(x, dtype=np.float64))
+    sigma_n = noise_sigma(xd)
+    reg = thornhill_regularity(xd, ts, p.n_half, p.min_half)
+    if reg is None:
+        return OscillationResult(
+            False, None, None, None, 0, 0.0, sigma_n, "fewer than 4 ACF half-periods"
+        )
+    period = reg.period_s
+    # light smoothing (1/20 of a period) before reading half-cycles and amplitudes
+    width = max(1, round(period / ts / 20.0))
+    xs = moving_average(xd, width)
+    band = p.noise_band * sigma_n / math.sqrt(width)
+    a = p.amplitude_noise_ratio * sigma_n
+    if pv_range:
+        a = max(a, p.amplitude_range_fraction * pv_range)
+    iae_lim = a * period / math.pi  # 2a/ω with ω = 2π/Tp
+    tsup = p.tsup_periods * period
+    hag = hagglund_loads(xs, ts, iae_lim, tsup, band)
+    hc = half_cycles(xs, ts, band=band, min_samples=2, n_points=4)
+    amplitude = float(np.mean(hc.peak)) if hc.count else float(np.std(xd) * math.sqrt(2.0))
+    bp = _band_power(xd, ts, period)
+    expected_half = 2.0 * xd.size * ts / period
+    n_needed = p.n_lim
+    if xd.size * ts < tsup:
+        n_needed = max(p.min_loads, min(p.n_lim, math.ceil(p.load_fraction * expected_half)))
+    regular = reg.regularity > p.regularity_limit
+    enough_loads = hag.load_count >= n_needed
+    strong = bp >= p.min_band_power
+    oscillating = regular and enough_loads and strong
+    if oscillating:
+        reason = "regular, sustained oscillation"
+    elif not regular:
+        reason = f"irregular (r = {reg.regularity:.2f} <= {p.regularity_limit:g})"
+    elif not enough_loads:
+        reason = f"only {hag.load_count} half-cycles above the acceptable amplitude ({n_needed})"
+    else:
+        reason = f"oscillation band holds only {100 * bp:.0f} % of the variance"
+    return OscillationResult(
+        oscillating,
+        period,
+        amplitude,
+        reg.regularity,
+        hag.load_count,
+        bp,
+        sigma_n,
+        reason,
+    )

@@ -1,0 +1,133 @@
+"""The diagnosis result (contracts.md §2) and the suggested action for each cause."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+SCHEMA = "plantcheck.diagnosis/1"
+
+CAUSES = (
+    "ok",
+    "stiction",
+    "aggressive_tuning",
+    "sluggish_tuning",
+    "external_disturbance",
+    "saturation",
+    "oscillation_unknown_cause",
+    "data_quality",
+    "manual_mode",
+    "insufficient_data",
+    "deadband_backlash",
+    "positioner_fault",
+    "positioner_tuning",
+    "air_leakage",
+    "actuator_undersized",
+)
+
+_ACTIONS: dict[str, tuple[str, str]] = {
+    "ok": ("none", "No action: the loop performs well."),
+    "stiction": (
+        "valve_maintenance",
+        "Schedule valve maintenance: the control valve sticks (stick-slip limit cycle).",
+    ),
+    "aggressive_tuning": (
+        "retune_less_aggressive",
+        "Retune the controller less aggressively (lower gain or longer integral time): "
+        "the loop oscillates at its own frequency.",
+    ),
+    "sluggish_tuning": (
+        "retune_more_aggressive",
+        "Retune the controller more aggressively (higher gain or shorter integral time): "
+        "the loop recovers slowly from disturbances.",
+    ),
+    "external_disturbance": (
+        "check_upstream",
+        "Look upstream: an oscillating disturbance enters the loop from outside; "
+        "find its source (other loops, feed, utilities).",
+    ),
+    "saturation": (
+        "check_valve_sizing",
+        "Check valve sizing and operating point: the controller output sits at a limit.",
+    ),
+    "oscillation_unknown_cause": (
+        "investigate_oscillation",
+        "Investigate the oscillation: the cause could not be determined from SP/PV/OP; "
+        "a valve travel test or a short manual-mode test tells valve from disturbance.",
+    ),
+    "data_quality": (
+        "check_data",
+        "Check the measurement and historian settings (gaps, frozen or quantised values).",
+    ),
+    "manual_mode": (
+        "check_mode",
+        "Put the loop back in automatic, or find out why operators run it in manual.",
+    ),
+    "insufficient_data": (
+        "collect_more_data",
+        "Collect a longer, steady window (constant set point, automatic mode).",
+    ),
+}
+
+
+def action_for(cause: str, S: float | None = None, J: float | None = None) -> dict[str, str]:
+    """The suggested action (code and operator text) for ``cause``."""
+    code, text = _ACTIONS.get(cause, ("investigate", "Investigate the loop."))
+    if cause == "stiction" and S is not None:
+        jtxt = f" (J = {J:.1f} %)" if J is not None else ""
+        text = f"Schedule valve maintenance: estimated stiction S = {S:.1f} %{jtxt}."
+    return {"code": code, "text": text}
+
+
+def json_safe(value: Any) -> Any:
+    """JSON-safe copy: non-finite floats become None, floats are rounded to 6 significant digits."""
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return None
+        return float(f"{value:.6g}")
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value
+
+
+@dataclass
+class Diagnosis:
+    """One loop diagnosis, as fixed by contracts.md §2 (units: seconds, % of valve travel)."""
+
+    loop_type: str
+    chain: str
+    samples: int
+    sample_time_s: float
+    cause: str
+    confidence: float
+    oscillating: bool
+    oscillation: dict[str, float | None] | None = None
+    stiction: dict[str, Any] = field(
+        default_factory=lambda: {"detected": False, "S": None, "J": None, "tests": {}}
+    )
+    valve: dict[str, Any] | None = None
+    indices: dict[str, float | int | None] = field(default_factory=dict)
+    actions: list[dict[str, str]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The contracts §2 JSON object."""
+        return {
+            "schema": SCHEMA,
+            "loop_type": self.loop_type,
+            "chain": self.chain,
+            "samples": self.samples,
+            "sample_time_s": json_safe(float(self.sample_time_s)),
+            "cause": self.cause,
+            "confidence": json_safe(round(float(self.confidence), 2)),
+            "oscillating": self.oscillating,
+            "oscillation": json_safe(self.oscillation),
+            "stiction": json_safe(self.stiction),
+            "valve": json_safe(self.valve),
+            "indices": json_safe(self.indices),
+            "actions": self.actions,
+            "notes": self.notes,
+        }

@@ -1,0 +1,238 @@
+"""Signal helpers shared by the diagnosis tests: ACF, zero crossings, half-cycles, filters.
+
+All functions are pure and vectorised over numpy arrays. Sample indices are integers,
+times are in seconds only where a sample time ``ts`` is passed explicitly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import fft as sp_fft
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+_MAD_TO_SIGMA = 1.4826
+
+
+def detrend(x: FloatArray) -> FloatArray:
+    """Remove the least-squares straight line from ``x``."""
+    n = x.size
+    if n < 2:
+        return x - x.mean() if n else x
+    t = np.arange(n, dtype=np.float64)
+    t -= t.mean()
+    xc = x - x.mean()
+    slope = float(t @ xc) / float(t @ t)
+    return np.asarray(xc - slope * t, dtype=np.float64)
+
+
+def fft_acf(x: FloatArray, max_lag: int | None = None) -> FloatArray:
+    """Normalised (biased) autocorrelation of mean-removed ``x`` via FFT, ``acf[0] = 1``.
+
+    Lags 0 .. ``max_lag`` - 1 (default: ``len(x) // 2``). Returns zeros for a constant signal.
+    """
+    n = x.size
+    max_lag = n // 2 if max_lag is None else min(max_lag, n)
+    xc = x - x.mean()
+    nfft = sp_fft.next_fast_len(2 * n, real=True)
+    spec = sp_fft.rfft(xc, nfft)
+    acf = sp_fft.irfft(spec.real**2 + spec.imag**2, nfft)[:max_lag]
+    if acf[0] <= 0:
+        return np.zeros(max_lag)
+    return np.asarray(acf / acf[0], dtype=np.float64)
+
+
+def fft_ccf(u: FloatArray, y: FloatArray, max_lag: int) -> tuple[IntArray, FloatArray]:
+    """Normalised cross-correlation r_uy(τ) = Σ u_k y_{k+τ} / (N σ_u σ_y), τ ∈ [−max_lag, max_lag].
+
+    (Horch 1999 convention: u = OP, y = PV.) Returns (lags, ccf).
+    """
+    n = u.size
+    uc = u - u.mean()
+    yc = y - y.mean()
+    nfft = sp_fft.next_fast_len(2 * n, real=True)
+    cross = sp_fft.irfft(np.conj(sp_fft.rfft(uc, nfft)) * sp_fft.rfft(yc, nfft), nfft)
+    denom = n * uc.std() * yc.std()
+    lags = np.arange(-max_lag, max_lag + 1)
+    vals = cross[lags % nfft] / denom if denom > 0 else np.zeros(lags.size)
+    return lags, np.asarray(vals, dtype=np.float64)
+
+
+def noise_sigma(x: FloatArray) -> float:
+    """Robust standard deviation of the white measurement noise in ``x``.
+
+    From the median absolute second difference (a second difference of white noise has
+    variance 6σ²), insensitive to slow oscillations and trends.
+    """
+    if x.size < 4:
+        return 0.0
+    d2 = np.diff(x, 2)
+    return float(_MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+
+
+def moving_average(x: FloatArray, width: int) -> FloatArray:
+    """Centred moving average over ``width`` samples (edges use the available samples)."""
+    if width <= 1 or x.size == 0:
+        return x
+    width = min(width, x.size)
+    c = np.concatenate(([0.0], np.cumsum(x)))
+    half_lo = width // 2
+    half_hi = width - half_lo
+    idx = np.arange(x.size)
+    lo = np.clip(idx - half_lo, 0, x.size)
+    hi = np.clip(idx + half_hi, 0, x.size)
+    return np.asarray((c[hi] - c[lo]) / (hi - lo), dtype=np.float64)
+
+
+def bandpass(x: FloatArray, ts: float, f_lo: float, f_hi: float) -> FloatArray:
+    """Zero-phase band-pass by zeroing FFT bins outside [f_lo, f_hi] Hz (Wiener-type filter).
+
+    Choudhury, Shah & Thornhill (2006) use this non-causal filter before ellipse fitting.
+    """
+    n = x.size
+    spec = sp_fft.rfft(x - x.mean())
+    f = sp_fft.rfftfreq(n, ts)
+    spec[(f < f_lo) | (f > f_hi)] = 0.0
+    return np.asarray(sp_fft.irfft(spec, n), dtype=np.float64)
+
+
+def hysteresis_sign(x: FloatArray, band: float) -> NDArray[np.int8]:
+    """Sign of ``x`` that only changes when ``x`` leaves the band [−band, band].
+
+    Samples inside the band keep the previous sign; leading in-band samples take the first
+    decided sign. Returns +1/−1 (all +1 when ``x`` never leaves the band).
+    """
+    s0 = np.where(x > band, 1, np.where(x < -band, -1, 0)).astype(np.int8)
+    nz = np.flatnonzero(s0)
+    if nz.size == 0:
+        return np.ones(x.size, dtype=np.int8)
+    idx = np.where(s0 != 0, np.arange(x.size), 0)
+    idx = np.maximum.accumulate(idx)
+    idx[: nz[0]] = nz[0]
+    return s0[idx]
+
+
+def zero_crossings(x: FloatArray, band: float = 0.0) -> IntArray:
+    """Indices where ``x`` crosses zero, confirmed by a hysteresis ``band``.
+
+    A crossing is kept only when the signal goes from below −band to above +band (or back);
+    its index is that of the last raw sign change before the confirmation, i.e. the sample
+    where the new half-cycle starts.
+    """
+    if x.size < 2:
+        return np.empty(0, dtype=np.intp)
+    s = hysteresis_sign(x, band)
+    conf = np.flatnonzero(np.diff(s)) + 1
+    if conf.size == 0 or band <= 0:
+        return conf.astype(np.intp)
+    raw = np.flatnonzero(np.signbit(x[:-1]) != np.signbit(x[1:])) + 1
+    pos = np.searchsorted(raw, conf, side="right") - 1
+    starts = np.where(pos >= 0, raw[np.clip(pos, 0, None)], conf)
+    return np.asarray(starts, dtype=np.intp)
+
+
+def interpolated_zero_crossings(x: FloatArray) -> FloatArray:
+    """Fractional sample positions where ``x`` changes sign (linear interpolation)."""
+    if x.size < 2:
+        return np.empty(0)
+    k = np.flatnonzero(np.signbit(x[:-1]) != np.signbit(x[1:]))
+    x0 = x[k]
+    x1 = x[k + 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(x1 != x0, x0 / (x0 - x1), 0.0)
+    return np.asarray(k + frac, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class HalfCycles:
+    """Half-cycles of a mean-removed signal, resampled to a common normalised time base.
+
+    ``shapes`` (n_half × n_points) holds each half-cycle flipped to be positive and divided
+    by its RMS; ``starts``/``stops`` are sample indices; ``iae`` is Σ|x|·ts per half-cycle
+    (signal units × seconds); ``peak`` is max |x| per half-cycle.
+    """
+
+    shapes: FloatArray
+    starts: IntArray
+    stops: IntArray
+    iae: FloatArray
+    peak: FloatArray
+
+    @property
+    def count(self) -> int:
+        """Number of half-cycles."""
+        return int(self.starts.size)
+
+
+def half_cycles(
+    x: FloatArray,
+    ts: float,
+    band: float = 0.0,
+    min_samples: int = 5,
+    n_points: int = 32,
+) -> HalfCycles:
+    """Split mean-removed ``x`` into half-cycles between confirmed zero crossings.
+
+    The first and last partial half-cycles are dropped, as are half-cycles shorter than
+    ``min_samples``. Each kept half-cycle is linearly resampled to ``n_points`` points on
+    normalised time [0, 1], both ends pinned to zero.
+    """
+    zc = zero_crossings(x, band)
+    if zc.size < 2:
+        empty_i = np.empty(0, dtype=np.intp)
+        return HalfCycles(np.empty((0, n_points)), empty_i, empty_i, np.empty(0), np.empty(0))
+    starts = zc[:-1]
+    stops = zc[1:]
+    keep = (stops - starts) >= min_samples
+    starts, stops = starts[keep], stops[keep]
+    n_half = starts.size
+    csum = np.concatenate(([0.0], np.cumsum(np.abs(x))))
+    iae = (csum[stops] - csum[starts]) * ts
+    if n_half == 0:
+        empty_i = np.empty(0, dtype=np.intp)
+        return HalfCycles(np.empty((0, n_points)), empty_i, empty_i, np.empty(0), np.empty(0))
+    # Resample every half-cycle at once: positions start + s*(len) for s in (0, 1).
+    s = np.linspace(0.0, 1.0, n_points)
+    length = (stops - starts).astype(np.float64)
+    pos = starts[:, None] + s[None, :] * length[:, None]
+    i0 = np.clip(np.floor(pos).astype(np.intp), 0, x.size - 1)
+    i1 = np.clip(i0 + 1, 0, x.size - 1)
+    frac = pos - i0
+    vals = x[i0] * (1 - frac) + x[i1] * frac
+    sign = np.sign(x[np.clip(starts + (stops - starts) // 2, 0, x.size - 1)])
+    sign[sign == 0] = 1.0
+    vals = vals * sign[:, None]
+    vals[:, 0] = 0.0
+    vals[:, -1] = 0.0
+    rms = np.sqrt(np.mean(vals**2, axis=1))
+    rms[rms == 0] = 1.0
+    shapes = vals / rms[:, None]
+    # peak over the raw samples of each half-cycle
+    peak = np.maximum.reduceat(np.abs(x), starts)[:n_half] if n_half else np.empty(0)
+    # reduceat runs to the next start, which equals the stop for contiguous half-cycles;
+    # recompute exactly where they are not contiguous
+    noncontig = np.flatnonzero(stops[:-1] != starts[1:])
+    for i in noncontig:
+        peak[i] = np.abs(x[starts[i] : stops[i]]).max()
+    if n_half:
+        peak[-1] = np.abs(x[starts[-1] : stops[-1]]).max()
+    return HalfCycles(shapes, starts, stops, iae, peak)
+
+
+def fit_error_to_templates(shapes: FloatArray, templates: FloatArray) -> FloatArray:
+    """Least-squares fit of every shape by every template with a free positive amplitude.
+
+    ``shapes`` (n × m), ``templates`` (k × m). Returns the smallest mean-squared fitting error
+    per shape over the templates (n,). The amplitude is A = <s, t>/<t, t>, clipped at 0.
+    """
+    norms = np.sqrt(np.sum(templates**2, axis=1))
+    norms[norms == 0] = 1.0
+    t_unit = templates / norms[:, None]
+    proj = np.clip(shapes @ t_unit.T, 0.0, None)
+    energy = np.sum(shapes**2, axis=1)
+    best = np.max(proj, axis=1)
+    return np.asarray((energy - best**2) / shapes.shape[1], dtype=np.float64)

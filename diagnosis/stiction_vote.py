@@ -1,0 +1,71 @@
+"""Stiction Analysis Module (SAM): applicable tests per loop type and their vote.
+
+Applicability follows methods.md §3.4 and the thesis' Table 2.2 (Bacci di Capaci 2016):
+Horch's CCF and the area ratio do not apply to integrating (level) loops, which get Horch's
+histogram test instead; the curve-fitting test reads OP for self-regulating loops and PV for
+integrating ones. Vote [R]: stiction if #stiction >= 2 and #stiction > #no_stiction;
+no stiction if #no_stiction >= 2 and #no_stiction > #stiction; otherwise undecided.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from plantcheck.diagnosis.test_result import StictionTestResult
+
+LOOP_TYPES = ("flow", "pressure", "level", "temperature", "composition", "other")
+INTEGRATING_TYPES = frozenset({"level"})
+
+APPLICABLE_TESTS: dict[str, tuple[str, ...]] = {
+    "self_regulating": ("relay", "curve_fit", "cross_correlation", "bicoherence", "area_ratio"),
+    "integrating": ("relay", "curve_fit", "histogram", "bicoherence"),
+}
+
+
+def is_integrating(loop_type: str) -> bool:
+    """True for loop types whose process integrates (level)."""
+    return loop_type in INTEGRATING_TYPES
+
+
+def applicable_tests(loop_type: str) -> tuple[str, ...]:
+    """Names of the stiction tests that apply to ``loop_type``."""
+    key = "integrating" if is_integrating(loop_type) else "self_regulating"
+    return APPLICABLE_TESTS[key]
+
+
+@dataclass(frozen=True)
+class VoteResult:
+    """Outcome of the vote: decision, the counts, and a score in [−1, 1] (+1 all stiction)."""
+
+    decision: Literal["stiction", "no_stiction", "undecided"]
+    n_stiction: int
+    n_no_stiction: int
+    n_tests: int
+    score: float
+
+
+@dataclass(frozen=True)
+class VoteParams:
+    """Vote rule parameters [R]."""
+
+    min_votes: int = 2
+    """Fewest concordant votes for a decision."""
+
+
+def vote(results: list[StictionTestResult], params: VoteParams | None = None) -> VoteResult:
+    """Combine applicable test verdicts (methods.md §3.4)."""
+    p = params or VoteParams()
+    used = [r for r in results if r.verdict != "not_applicable"]
+    yes = sum(r.verdict == "stiction" for r in used)
+    no = sum(r.verdict == "no_stiction" for r in used)
+    n = len(used)
+    score = (yes - no) / n if n else 0.0
+    decision: Literal["stiction", "no_stiction", "undecided"]
+    if yes >= p.min_votes and yes > no:
+        decision = "stiction"
+    elif no >= p.min_votes and no > yes:
+        decision = "no_stiction"
+    else:
+        decision = "undecided"
+    return VoteResult(decision, yes, no, n, score)

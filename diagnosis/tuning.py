@@ -1,0 +1,114 @@
+"""Controller-tuning indices (methods.md §3.2–§3.3).
+
+- ``identify_pi``: the PI controller's gain and integral time estimated from routine data by
+  least squares on the velocity form ΔOP = Kc·Δe + (Kc·Ts/Ti)·e (OP is an exact function of
+  the measured error, so the regression is well posed when the loop is in automatic). The
+  sign of Kc gives the sign of the process gain (a stable loop has Kc·Kp > 0).
+- ``idle_index``: Hägglund (1999, CEP 7:1505) idle index I_i = (t_pos − t_neg)/(t_pos + t_neg)
+  on filtered increments of OP and PV; I_i near +1 means a sluggish loop.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+from plantcheck.diagnosis.signal_tools import FloatArray, noise_sigma
+
+
+@dataclass(frozen=True)
+class TuningParams:
+    """Thresholds of the tuning indices."""
+
+    idle_limit: float = 0.4
+    """Idle index above this -> sluggish ([M] Hägglund 1999/2005)."""
+    idle_min_samples: int = 50
+    """Fewest informative samples (both increments beyond the dead zone) for an idle index."""
+    idle_filter_ti: float = 0.5
+    """Increment filter time constant as a fraction of the identified Ti [R]."""
+    idle_deadzone: float = 0.2
+    """Increments smaller than this fraction of their std are ignored [R]."""
+    pi_min_fit: float = 0.5
+    """R² of the PI regression below which Kc and Ti are not trusted [R]."""
+
+
+@dataclass(frozen=True)
+class PIEstimate:
+    """Identified PI controller: Kc in %OP per PV unit, Ti in s, R² of the regression."""
+
+    kc: float
+    ti_s: float | None
+    fit: float
+
+    @property
+    def gain_sign(self) -> int:
+        """Sign of the process gain implied by the controller action (+1 reverse acting)."""
+        return 1 if self.kc >= 0 else -1
+
+
+def identify_pi(op: FloatArray, pv: FloatArray, sp: FloatArray, ts: float) -> PIEstimate:
+    """Least-squares PI identification from OP, PV, SP.
+
+    ΔOP(k) = a·e(k) + b·e(k−1) + c covers both discrete PI forms (integral on e(k) or on
+    e(k−1)); then Kc·Ts/Ti = a + b and Kc = (a − b)/2 (the Tustin midpoint of the two).
+    """
+    e = sp - pv
+    d_op = np.diff(op)
+    reg = np.column_stack([e[1:], e[:-1], np.ones(d_op.size)])
+    coef, *_ = np.linalg.lstsq(reg, d_op, rcond=None)
+    resid = d_op - reg @ coef
+    var = float(np.var(d_op))
+    fit = 1.0 - float(np.var(resid)) / var if var > 0 else 0.0
+    a, b = float(coef[0]), float(coef[1])
+    ki = a + b
+    kc = (a - b) / 2.0
+    ti = kc * ts / ki if ki != 0 and kc * ki > 0 else None
+    if ti is None and ki != 0:
+        # Integral action alone still gives the controller direction: ΔOP ∝ e.
+        kc = math.copysign(abs(kc) or 1e-12, ki)
+    return PIEstimate(kc, ti, max(fit, 0.0))
+
+
+def lowpass(x: FloatArray, ts: float, tf_s: float) -> FloatArray:
+    """First-order low-pass with time constant ``tf_s`` seconds (exact discretisation)."""
+    if tf_s <= 0:
+        return x
+    a = math.exp(-ts / tf_s)
+    y = lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0]
+    return np.asarray(y, dtype=np.float64)
+
+
+def idle_index(
+    op: FloatArray,
+    pv: FloatArray,
+    ts: float,
+    gain_sign: int = 1,
+    filter_s: float | None = None,
+    params: TuningParams | None = None,
+) -> float | None:
+    """Hägglund idle index I_i ∈ [−1, 1] (sluggish when close to +1); None if not informative.
+
+    Only samples where the filtered PV is away from its mean by more than 2σ of the noise and
+    both increments exceed the dead zone are counted (the index is meaningful only while the
+    loop recovers from a load, Hägglund 1999).
+    """
+    p = params or TuningParams()
+    tf = filter_s if filter_s is not None else 10.0 * ts
+    u = lowpass(op, ts, tf)
+    y = lowpass(pv, ts, tf)
+    du = np.diff(u)
+    dy = np.diff(y)
+    sn = noise_sigma(pv)
+    away = np.abs(y[1:] - np.median(y)) > 2.0 * sn
+    dz_u = p.idle_deadzone * float(np.std(du))
+    dz_y = p.idle_deadzone * float(np.std(dy))
+    use = away & (np.abs(du) > dz_u) & (np.abs(dy) > dz_y)
+    if int(use.sum()) < p.idle_min_samples:
+        return None
+    prod = np.sign(du[use] * dy[use])
+    t_pos = float(np.sum(prod > 0))
+    t_neg = float(np.sum(prod < 0))
+    return gain_sign * (t_pos - t_neg) / (t_pos + t_neg)

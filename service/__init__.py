@@ -1,0 +1,1 @@
+"""Service layer: record files, command-line interface (and later the scheduler)."""

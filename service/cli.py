@@ -1,0 +1,241 @@
+"""The ``plantcheck`` command line (contracts.md §2–§3).
+
+Exit status: 0 when a diagnosis was made (whatever its cause), 2 when the input cannot be
+used at all (one line on stderr naming the problem and the fix), 1 on an internal error
+(one line, never a traceback).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+
+from plantcheck import __version__
+from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose
+from plantcheck.diagnosis.result import json_safe
+from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
+
+DEFAULT_MAX_SAMPLES = 200_000
+
+app = typer.Typer(
+    name="plantcheck",
+    help="Monitor and diagnose industrial control loops (stiction, tuning, disturbances).",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+
+
+class LoopType(StrEnum):
+    """Loop types of contracts §2."""
+
+    flow = "flow"
+    pressure = "pressure"
+    level = "level"
+    temperature = "temperature"
+    composition = "composition"
+    other = "other"
+
+
+def _fail(message: str, code: int = 2) -> typer.Exit:
+    typer.echo(f"plantcheck: error: {message}", err=True)
+    return typer.Exit(code)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"plantcheck {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Show the version."),
+    ] = False,
+) -> None:
+    """plantcheck: on-line monitoring and diagnosis of control loops."""
+
+
+def _load(file: Path, sample_time: float | None, need: tuple[str, ...]) -> LoopRecordFile:
+    if sample_time is not None and not sample_time > 0:
+        raise _fail(f"--sample-time must be a positive number of seconds, not {sample_time:g}")
+    try:
+        rec = read_record(file, sample_time)
+        require(rec, file, need)
+    except RecordError as exc:
+        raise _fail(str(exc)) from None
+    return rec
+
+
+def _tail(rec: LoopRecordFile, max_samples: int) -> tuple[slice, list[str]]:
+    n = rec.t.size
+    if n <= max_samples:
+        return slice(0, n), []
+    note = (
+        f"record has {n} samples: diagnosed the last {max_samples} "
+        "(use --max-samples to change; a diagnosis window is normally hours to a day)"
+    )
+    typer.echo(f"plantcheck: {note}", err=True)
+    return slice(n - max_samples, n), [note]
+
+
+def _summary(d: Diagnosis) -> str:
+    lines = [
+        f"cause:       {d.cause}  (confidence {d.confidence:.2f})",
+        f"chain:       {d.chain}, loop type {d.loop_type}, {d.samples} samples at "
+        f"{d.sample_time_s:g} s",
+    ]
+    if d.oscillation:
+        o = d.oscillation
+        lines.append(
+            f"oscillation: period {o['period_s'] or 0:.1f} s, amplitude {o['amplitude'] or 0:.3g}, "
+            f"regularity {o['regularity'] or 0:.2f}"
+        )
+    else:
+        lines.append("oscillation: none")
+    tests = d.stiction.get("tests") or {}
+    if tests:
+        shown = ", ".join(
+            f"{k} {v:.2f}" if isinstance(v, float) else f"{k} {v}" for k, v in tests.items()
+        )
+        lines.append(
+            f"stiction:    {'detected' if d.stiction['detected'] else 'not detected'} ({shown})"
+        )
+    for a in d.actions:
+        lines.append(f"action:      {a['text']}")
+    for note in d.notes:
+        lines.append(f"note:        {note}")
+    return "\n".join(lines)
+
+
+@app.command("diagnose")
+def diagnose_cmd(
+    file: Annotated[
+        Path, typer.Argument(help="Loop record CSV (contracts §1).", show_default=False)
+    ],
+    loop_type: Annotated[
+        LoopType, typer.Option("--loop-type", help="Kind of loop; selects the applicable tests.")
+    ] = LoopType.other,
+    sample_time: Annotated[
+        float | None,
+        typer.Option("--sample-time", help="Sample time in s (default: median spacing)."),
+    ] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object (contracts §2).")
+    ] = False,
+    max_samples: Annotated[
+        int,
+        typer.Option("--max-samples", min=100, help="Diagnose at most the last N samples."),
+    ] = DEFAULT_MAX_SAMPLES,
+) -> None:
+    """Diagnose one recorded loop: what is wrong and what to do."""
+    rec = _load(file, sample_time, ("pv", "op"))
+    sl, extra = _tail(rec, max_samples)
+    pv = rec.signals["pv"][sl]
+    op = rec.signals["op"][sl]
+    sp = rec.signals["sp"][sl] if "sp" in rec.signals else None
+    auto = rec.auto[sl] if rec.auto is not None else None
+    d = diagnose(pv, op, rec.sample_time_s, sp=sp, auto=auto, loop_type=loop_type.value)
+    d.notes = rec.notes + extra + d.notes
+    if "mv" in rec.signals:
+        d.notes.append(
+            "mv column present: the advanced chain is not available yet; standard chain used"
+        )
+    _emit(d.to_dict() if as_json else _summary(d), as_json)
+
+
+@app.command("oscillation")
+def oscillation_cmd(
+    file: Annotated[Path, typer.Argument(help="Record CSV (contracts §1).", show_default=False)],
+    column: Annotated[str, typer.Option("--column", help="Column to test, e.g. pv or op.")],
+    sample_time: Annotated[
+        float | None,
+        typer.Option("--sample-time", help="Sample time in s (default: median spacing)."),
+    ] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object (contracts §3).")
+    ] = False,
+    max_samples: Annotated[
+        int,
+        typer.Option("--max-samples", min=100, help="Test at most the last N samples."),
+    ] = DEFAULT_MAX_SAMPLES,
+) -> None:
+    """Test one signal for a sustained oscillation (Hägglund + Thornhill)."""
+    name = column.strip().lower()
+    if name not in ("sp", "pv", "op", "mv"):
+        raise _fail(f"--column must be one of sp, pv, op, mv, not {column!r}")
+    rec = _load(file, sample_time, (name,))
+    sl, _ = _tail(rec, max_samples)
+    x = rec.signals[name][sl]
+    ok = np.isfinite(x)
+    out: dict[str, Any] = {
+        "schema": "plantcheck.oscillation/1",
+        "column": name,
+        "oscillating": False,
+        "period_s": None,
+        "amplitude": None,
+        "regularity": None,
+        "samples": int(x.size),
+        "sample_time_s": rec.sample_time_s,
+    }
+    notes = list(rec.notes)
+    if ok.sum() < 20 or np.ptp(x[ok]) == 0:
+        notes.append("too few numeric samples or a constant signal: no oscillation can be asserted")
+    else:
+        if not ok.all():
+            x = np.interp(np.arange(x.size), np.flatnonzero(ok), x[ok])
+            notes.append(f"{int((~ok).sum())} missing samples interpolated")
+        res = detect_oscillation(x, rec.sample_time_s)
+        out.update(
+            oscillating=res.oscillating,
+            period_s=res.period_s if res.oscillating else None,
+            amplitude=res.amplitude if res.oscillating else None,
+            regularity=res.regularity,
+        )
+        notes.append(res.reason)
+    out["notes"] = notes
+    if as_json:
+        _emit(json_safe(out), True)
+    else:
+        state = "oscillating" if out["oscillating"] else "not oscillating"
+        text = f"{name}: {state}"
+        if out["oscillating"]:
+            text += f", period {out['period_s']:.1f} s, amplitude {out['amplitude']:.3g}"
+        if out["regularity"] is not None:
+            text += f", regularity {out['regularity']:.2f}"
+        _emit(text + "".join(f"\nnote: {n}" for n in notes), False)
+
+
+def _emit(payload: Any, as_json: bool) -> None:
+    if as_json:
+        typer.echo(json.dumps(payload, ensure_ascii=False))
+    else:
+        typer.echo(payload)
+
+
+def main() -> None:
+    """Console-script entry point: never shows a traceback."""
+    try:
+        app()
+    except KeyboardInterrupt:
+        typer.echo("plantcheck: interrupted", err=True)
+        sys.exit(130)
+    except SystemExit:
+        raise
+    except MemoryError:
+        typer.echo(
+            "plantcheck: error: out of memory; use --max-samples to diagnose fewer samples",
+            err=True,
+        )
+        sys.exit(2)
+    except Exception as exc:
+        typer.echo(f"plantcheck: internal error: {type(exc).__name__}: {exc}", err=True)
+        sys.exit(1)

@@ -1,0 +1,262 @@
+"""Loop record files (contracts.md §1): CSV with a header, read into uniform numpy arrays.
+
+- separator ``,``, ``;`` or tab, detected from the header line; column names case-insensitive;
+- time from ``timestamp`` (ISO 8601, no zone = UTC) or ``t`` (seconds); without either the
+  rows are taken as equally spaced at ``--sample-time`` (or 1 s, noted);
+- ``pv``, ``op`` required for the diagnosis, ``sp``, ``mv``, ``mode`` optional;
+- missing or non-numeric cells are gaps (NaN), never zeros;
+- duplicate timestamps are merged (mean), unsorted rows are sorted, irregular spacing is
+  resampled to the median spacing (linear interpolation; gaps longer than 3 samples stay NaN).
+
+Errors that make a file unusable raise ``RecordError`` with a one-line message naming the
+problem and the fix.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+SIGNALS = ("sp", "pv", "op", "mv")
+AUTO_MODES = frozenset({"1", "1.0", "auto", "cas", "automatic", "cascade"})
+MAX_GAP_SAMPLES = 3
+
+
+class RecordError(Exception):
+    """A record file that cannot be used at all (exit status 2 in the CLI)."""
+
+
+@dataclass
+class LoopRecordFile:
+    """A loop record on a uniform time grid.
+
+    ``t`` in seconds from the first sample; signals in the record's units; ``auto`` is None
+    when the file has no ``mode`` column.
+    """
+
+    t: FloatArray
+    signals: dict[str, FloatArray]
+    sample_time_s: float
+    auto: NDArray[np.bool_] | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def get(self, name: str) -> FloatArray | None:
+        """The named signal or None."""
+        return self.signals.get(name)
+
+
+def _detect_separator(header: str) -> str:
+    counts = {sep: header.count(sep) for sep in (",", ";", "\t")}
+    sep = max(counts, key=lambda s: counts[s])
+    return sep if counts[sep] > 0 else ","
+
+
+def _to_float(cells: list[str]) -> FloatArray:
+    """Parse cells as floats; anything non-numeric (or non-finite) becomes NaN."""
+    try:
+        fast = np.array(cells, dtype=np.float64)
+    except ValueError:
+        pass
+    else:
+        fast[~np.isfinite(fast)] = np.nan
+        return fast
+    out = np.full(len(cells), np.nan)
+    for i, c in enumerate(cells):
+        try:
+            v = float(c)
+        except ValueError:
+            v = math.nan
+            c2 = c.strip().replace(",", ".")
+            if c2 and c2 != c:
+                try:
+                    v = float(c2)
+                except ValueError:
+                    v = math.nan
+        out[i] = v if math.isfinite(v) else math.nan
+    return out
+
+
+def _parse_timestamps(cells: list[str]) -> FloatArray:
+    """ISO 8601 timestamps to POSIX seconds (no zone = UTC); unparsable cells are NaN."""
+    try:
+        arr = np.array([c.strip().rstrip("Z") for c in cells], dtype="datetime64[us]")
+        return np.asarray(arr.astype(np.int64) / 1e6, dtype=np.float64)
+    except ValueError:
+        pass
+    out = np.full(len(cells), np.nan)
+    for i, c in enumerate(cells):
+        s = c.strip()
+        if not s:
+            continue
+        try:
+            dt = datetime.fromisoformat(s.replace("Z", "+00:00"))
+        except ValueError:
+            continue
+        if dt.tzinfo is None:
+            dt = dt.replace(tzinfo=UTC)
+        out[i] = dt.timestamp()
+    return out
+
+
+def _read_columns(path: Path) -> tuple[list[str], list[list[str]]]:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise RecordError(f"{path}: file not found; check the path") from None
+    except IsADirectoryError:
+        raise RecordError(f"{path}: is a directory; give a CSV record file") from None
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot be read ({exc.strerror}); check permissions") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    if not text.strip():
+        raise RecordError(f"{path}: file is empty; a header row and data rows are needed")
+    first_nl = text.find("\n")
+    header_line = text if first_nl < 0 else text[:first_nl]
+    sep = _detect_separator(header_line)
+    reader = csv.reader(io.StringIO(text), delimiter=sep)
+    header = [h.strip().lower() for h in next(reader)]
+    columns: list[list[str]] = [[] for _ in header]
+    ncol = len(header)
+    for row in reader:
+        if not row or (len(row) == 1 and not row[0].strip()):
+            continue
+        if len(row) < ncol:
+            row = row + [""] * (ncol - len(row))
+        for j in range(ncol):
+            columns[j].append(row[j])
+    return header, columns
+
+
+def read_record(path: str | Path, sample_time_s: float | None = None) -> LoopRecordFile:
+    """Read and regularise a loop record file (contracts.md §1).
+
+    Raises ``RecordError`` when the file is missing, empty, has no header or no data rows.
+    Signal columns are optional here; callers check what they need (``require``).
+    """
+    path = Path(path)
+    header, columns = _read_columns(path)
+    notes: list[str] = []
+    if not any(h in ("pv", "op", "sp", "mv", "t", "timestamp", "mode") for h in header):
+        raise RecordError(
+            f"{path}: no known column in the header {header[:6]}; expected a header row with "
+            "pv, op (and sp, mv, mode, timestamp or t)"
+        )
+    n = len(columns[0]) if columns else 0
+    if n == 0:
+        raise RecordError(f"{path}: header only, no data rows; record at least a few samples")
+    if sample_time_s is not None and not (sample_time_s > 0 and math.isfinite(sample_time_s)):
+        raise RecordError(
+            f"--sample-time must be a positive number of seconds, not {sample_time_s}"
+        )
+    col = {h: columns[i] for i, h in enumerate(header)}
+    if "timestamp" in col:
+        t = _parse_timestamps(col["timestamp"])
+        time_name = "timestamp"
+    elif "t" in col:
+        t = _to_float(col["t"])
+        time_name = "t"
+    else:
+        t = np.arange(n, dtype=np.float64) * (sample_time_s or 1.0)
+        time_name = ""
+        notes.append(
+            f"no timestamp or t column: rows taken as equally spaced at {sample_time_s or 1.0:g} s"
+        )
+    signals = {name: _to_float(col[name]) for name in SIGNALS if name in col}
+    mode = None
+    if "mode" in col:
+        mode = np.array([c.strip().lower() in AUTO_MODES for c in col["mode"]], dtype=bool)
+    bad_t = ~np.isfinite(t)
+    if bad_t.all():
+        raise RecordError(
+            f"{path}: column {time_name!r} has no valid time value; use ISO 8601 timestamps "
+            "or seconds"
+        )
+    if bad_t.any():
+        notes.append(f"{int(bad_t.sum())} rows with an unreadable {time_name!r} dropped")
+        keep = ~bad_t
+        t = t[keep]
+        signals = {k: v[keep] for k, v in signals.items()}
+        mode = mode[keep] if mode is not None else None
+    return _regularise(t, signals, mode, sample_time_s, notes)
+
+
+def _regularise(
+    t: FloatArray,
+    signals: dict[str, FloatArray],
+    mode: NDArray[np.bool_] | None,
+    sample_time_s: float | None,
+    notes: list[str],
+) -> LoopRecordFile:
+    order = np.argsort(t, kind="stable")
+    if np.any(order != np.arange(t.size)):
+        notes.append("rows were not in time order: sorted")
+        t = t[order]
+        signals = {k: v[order] for k, v in signals.items()}
+        mode = mode[order] if mode is not None else None
+    uniq, inverse, counts = np.unique(t, return_inverse=True, return_counts=True)
+    if uniq.size < t.size:
+        notes.append(f"{t.size - uniq.size} duplicate timestamps merged (mean of the values)")
+        merged = {}
+        for k, v in signals.items():
+            ok = np.isfinite(v)
+            s = np.bincount(inverse, weights=np.where(ok, v, 0.0), minlength=uniq.size)
+            c = np.bincount(inverse, weights=ok.astype(np.float64), minlength=uniq.size)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                merged[k] = np.where(c > 0, s / np.where(c > 0, c, 1.0), np.nan)
+        signals = merged
+        if mode is not None:
+            mode = (
+                np.bincount(inverse, weights=mode.astype(np.float64), minlength=uniq.size) >= counts
+            )
+        t = uniq
+    if t.size < 2:
+        ts = sample_time_s or 1.0
+        return LoopRecordFile(t - t[0], signals, ts, mode, notes)
+    dt = np.diff(t)
+    ts = float(sample_time_s) if sample_time_s else float(np.median(dt))
+    regular = np.allclose(dt, ts, rtol=0.01, atol=1e-9)
+    if regular:
+        return LoopRecordFile(t - t[0], signals, ts, mode, notes)
+    grid = t[0] + np.arange(math.floor((t[-1] - t[0]) / ts + 1e-9) + 1) * ts
+    notes.append(f"irregular sample spacing: resampled to {ts:g} s ({grid.size} samples)")
+    out: dict[str, FloatArray] = {}
+    # position of each grid point between the original samples
+    right = np.clip(np.searchsorted(t, grid, side="left"), 1, t.size - 1)
+    left = right - 1
+    gap = (t[right] - t[left]) > (MAX_GAP_SAMPLES + 1) * ts
+    exact = np.isclose(t[np.clip(right, 0, t.size - 1)], grid)
+    for k, v in signals.items():
+        ok = np.isfinite(v)
+        if ok.sum() < 2:
+            out[k] = np.full(grid.size, np.nan)
+            continue
+        g = np.interp(grid, t[ok], v[ok])
+        bad = (gap & ~exact) | ~(ok[left] | exact) | ~(ok[right] | ~exact)
+        g[bad & ~exact] = np.nan
+        out[k] = g
+    mode_g = None
+    if mode is not None:
+        mode_g = mode[np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)]
+    return LoopRecordFile(grid - grid[0], out, ts, mode_g, notes)
+
+
+def require(record: LoopRecordFile, path: str | Path, names: tuple[str, ...]) -> None:
+    """Raise ``RecordError`` when a required column is missing from the record."""
+    missing = [n for n in names if n not in record.signals]
+    if missing:
+        raise RecordError(
+            f"{path}: no {', '.join(missing)} column; the header must name "
+            f"{' and '.join(names)} (case-insensitive)"
+        )

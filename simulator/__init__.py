@@ -1,0 +1,1 @@
+"""Closed-loop plant simulation: process, PI controller, sticky valve (pure numpy)."""

@@ -1,0 +1,185 @@
+"""Labelled closed-loop cases for testing and calibrating the diagnosis (methods.md §9.1).
+
+Each case is a ``LoopConfig`` plus its true cause. Controllers are tuned by SIMC
+(Skogestad 2003, τ_c = θ) and modified per class: aggressive = gain at 0.8–0.95 of the
+ultimate gain; sluggish = Kc × 0.2 and Ti × 5 (methods §9.1); sticky valves use the Kano
+or He model; external disturbances are sinusoids with a period 5–50× the process time
+constant (or several closed-loop time scales for integrating processes).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import brentq
+
+from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process
+
+PROCESSES: dict[str, tuple[str, Process]] = {
+    "flow": ("flow", Process("fopdt", K=1.0, tau_s=2.0, theta_s=1.0)),
+    "pressure": ("pressure", Process("fopdt", K=1.5, tau_s=8.0, theta_s=2.0)),
+    "temperature": ("temperature", Process("fopdt", K=2.0, tau_s=20.0, theta_s=5.0)),
+    "temperature2": ("temperature", Process("fopdt", K=1.0, tau_s=30.0, theta_s=10.0, tau2_s=10.0)),
+    "level": ("level", Process("integrating", K=0.1, theta_s=2.0)),
+}
+
+
+def simc_pi(p: Process) -> PIController:
+    """SIMC PI tuning with τ_c = θ (Skogestad 2003); θ includes half the second lag."""
+    theta = max(p.theta_s + p.tau2_s / 2.0, 0.5)
+    tc = theta
+    if p.kind == "integrating":
+        kc = 1.0 / (p.K * (tc + theta))
+        return PIController(Kc=kc, Ti_s=4.0 * (tc + theta))
+    kc = p.tau_s / (p.K * (tc + theta))
+    return PIController(Kc=kc, Ti_s=min(p.tau_s, 4.0 * (tc + theta)))
+
+
+def _loop_gain(p: Process, ti: float, w: float, ts: float) -> complex:
+    """L(jω)/Kc for a PI controller and the process, with a half-sample ZOH delay."""
+    s = 1j * w
+    c = 1.0 + 1.0 / (ti * s)
+    delay = np.exp(-s * (p.theta_s + ts / 2.0))
+    if p.kind == "integrating":
+        g = p.K / s
+    else:
+        g = p.K / (p.tau_s * s + 1.0)
+        if p.tau2_s > 0:
+            g = g / (p.tau2_s * s + 1.0)
+    return complex(c * g * delay)
+
+
+def ultimate_gain(p: Process, ti: float, ts: float) -> tuple[float, float]:
+    """Ultimate gain Ku and period Tu (s) of the PI loop with integral time ``ti``."""
+
+    def phase(w: float) -> float:
+        return float(np.unwrap([0.0, np.angle(_loop_gain(p, ti, w, ts))])[1]) + math.pi
+
+    ws = np.logspace(-4, math.log10(math.pi / ts), 2000)
+    ph = np.unwrap(np.angle([_loop_gain(p, ti, w, ts) for w in ws]))
+    idx = np.flatnonzero(ph < -math.pi)
+    i = int(idx[0])
+    wu = float(brentq(lambda w: float(np.interp(w, ws, ph)) + math.pi, ws[i - 1], ws[i]))
+    ku = 1.0 / abs(_loop_gain(p, ti, wu, ts))
+    return ku, 2.0 * math.pi / wu
+
+
+@dataclass(frozen=True)
+class Case:
+    """A labelled simulated loop."""
+
+    name: str
+    cause: str
+    loop_type: str
+    config: LoopConfig
+
+
+def _random_loads(
+    rng: np.random.Generator, duration_s: float, every_s: float, size: float
+) -> Disturbance:
+    n = max(2, int(duration_s / every_s))
+    times = np.sort(rng.uniform(0, duration_s, n))
+    sizes = rng.normal(0, size, n)
+    return Disturbance(where="load", steps=tuple(zip(times.tolist(), sizes.tolist(), strict=True)))
+
+
+def generate_cases(
+    seed: int = 1, per_cell: int = 1, lengths: tuple[int, ...] = (3000,)
+) -> Iterator[Case]:
+    """Yield the labelled case matrix: every cause × process × noise level × length.
+
+    Sample times scale with the process (0.2 s for flow up to several seconds for slow loops).
+    """
+    rng = np.random.default_rng(seed)
+    noise_levels = (0.05, 0.2, 0.5)
+    for pname, (loop_type, proc) in PROCESSES.items():
+        slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
+        ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))
+        base_pi = simc_pi(proc)
+        ku, tu = ultimate_gain(proc, base_pi.Ti_s, ts)
+        for n in lengths:
+            dur = n * ts
+            for noise in noise_levels:
+                for rep in range(per_cell):
+                    s = int(rng.integers(1 << 30))
+                    tag = f"{pname}-n{n}-noise{noise}-r{rep}"
+                    common = dict(
+                        process=proc,
+                        sample_time_s=ts,
+                        n_samples=n,
+                        warmup_samples=int(20 * tu / ts) + 200,
+                        noise_std=noise,
+                        seed=s,
+                    )
+                    load_std = 1.0
+                    yield Case(
+                        f"ok-{tag}",
+                        "ok",
+                        loop_type,
+                        LoopConfig(
+                            controller=base_pi,
+                            disturbances=(_random_loads(rng, dur, 40 * tu, load_std),),
+                            **common,  # type: ignore[arg-type]
+                        ),
+                    )
+                    S = float(rng.choice([1.0, 2.0, 4.0, 8.0]))
+                    J = S * float(rng.choice([0.2, 0.5, 1.0]))
+                    valve = "kano" if rep % 2 == 0 else "he"
+                    yield Case(
+                        f"stiction-{valve}-S{S:g}-J{J:g}-{tag}",
+                        "stiction",
+                        loop_type,
+                        LoopConfig(
+                            controller=base_pi,
+                            valve=valve,  # type: ignore[arg-type]
+                            S=S,
+                            J=J,
+                            disturbances=(_random_loads(rng, dur, 40 * tu, 0.3 * S),),
+                            **common,  # type: ignore[arg-type]
+                        ),
+                    )
+                    frac = float(rng.uniform(0.8, 0.95))
+                    yield Case(
+                        f"aggressive-{frac:.2f}Ku-{tag}",
+                        "aggressive_tuning",
+                        loop_type,
+                        LoopConfig(
+                            controller=replace(base_pi, Kc=frac * ku),
+                            disturbances=(
+                                Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=tu),
+                            ),
+                            **common,  # type: ignore[arg-type]
+                        ),
+                    )
+                    yield Case(
+                        f"sluggish-{tag}",
+                        "sluggish_tuning",
+                        loop_type,
+                        LoopConfig(
+                            controller=replace(base_pi, Kc=0.2 * base_pi.Kc, Ti_s=5 * base_pi.Ti_s),
+                            disturbances=(_random_loads(rng, dur, 30 * tu * 5, 3 * load_std),),
+                            **common,  # type: ignore[arg-type]
+                        ),
+                    )
+                    mult = float(rng.uniform(5, 50))
+                    period = mult * (proc.tau_s if proc.kind == "fopdt" else tu)
+                    period = min(period, dur / 8)
+                    yield Case(
+                        f"disturbance-T{period:.0f}s-{tag}",
+                        "external_disturbance",
+                        loop_type,
+                        LoopConfig(
+                            controller=base_pi,
+                            disturbances=(
+                                Disturbance(
+                                    where="load",
+                                    sine_amplitude=float(rng.uniform(2.0, 6.0)),
+                                    sine_period_s=period,
+                                ),
+                            ),
+                            **common,  # type: ignore[arg-type]
+                        ),
+                    )

@@ -1,0 +1,110 @@
+"""Step-wise control-valve models for closed-loop simulation.
+
+Each model maps the controller output OP (% of travel) to the valve stem position MV
+(% of travel), one sample at a time, so that it can sit inside a feedback loop.
+
+- ``LinearValve``: MV = OP (healthy valve).
+- ``KanoValve``: two-parameter (S, J) stick-slip model of Kano, Maruta, Kugemoto & Shimizu
+  (2004, DYCOPS), logic as in BDSIM ``stiction.m`` (methods.md §5.3).
+- ``HeValve``: semi-physical (f_s, f_d) model of He, Wang, Pottmann & Qin (2007), methods.md §5.4;
+  S ~ f_s + f_d and J ~ f_s - f_d.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+
+class Valve(Protocol):
+    """A valve: OP in, MV out, both in % of travel."""
+
+    def step(self, op: float) -> float:
+        """Advance one sample with controller output ``op`` and return the stem position."""
+        ...
+
+
+def _clip(u: float) -> float:
+    return 0.0 if u < 0.0 else 100.0 if u > 100.0 else u
+
+
+@dataclass
+class LinearValve:
+    """Healthy valve: the stem follows the controller output exactly."""
+
+    def step(self, op: float) -> float:
+        return _clip(op)
+
+
+@dataclass
+class KanoValve:
+    """Kano et al. (2004) stiction model.
+
+    Parameters
+    ----------
+    S:
+        Deadband plus stickband, % of valve travel.
+    J:
+        Slip jump, % of valve travel.
+    """
+
+    S: float
+    J: float
+    _u_old: float | None = field(default=None, init=False, repr=False)
+    _du_old: float = field(default=0.0, init=False, repr=False)
+    _moving: bool = field(default=True, init=False, repr=False)
+    _us: float = field(default=0.0, init=False, repr=False)
+    _d: float = field(default=-1.0, init=False, repr=False)
+    _y: float = field(default=0.0, init=False, repr=False)
+
+    def step(self, op: float) -> float:
+        u = _clip(op)
+        if self._u_old is None:
+            self._u_old = u
+            self._us = u + (self.S - self.J) / 2.0
+            self._y = u
+            return u
+        du = u - self._u_old
+        if du * self._du_old <= 0.0 and self._moving:
+            self._us = self._u_old
+            self._moving = False
+        if self._moving:
+            self._y = u - self._d * (self.S - self.J) / 2.0
+        elif -self._d * (u - self._us) > self.S:
+            self._d = -self._d
+            self._y = u - self._d * (self.S - self.J) / 2.0
+            self._moving = True
+        elif self._d * (u - self._us) > self.J:
+            self._y = u - self._d * (self.S - self.J) / 2.0
+            self._moving = True
+        self._du_old = du
+        self._u_old = u
+        self._y = _clip(self._y)
+        return self._y
+
+
+@dataclass
+class HeValve:
+    """He et al. (2007) semi-physical stiction model.
+
+    Parameters
+    ----------
+    fs:
+        Static friction band, % of travel.
+    fd:
+        Kinetic friction band, % of travel (``fd <= fs``).
+    """
+
+    fs: float
+    fd: float
+    _x: float | None = field(default=None, init=False, repr=False)
+
+    def step(self, op: float) -> float:
+        u = _clip(op)
+        if self._x is None:
+            self._x = u
+            return u
+        ur = u - self._x
+        if abs(ur) > self.fs:
+            self._x = _clip(u - (self.fd if ur > 0 else -self.fd))
+        return self._x

@@ -1,0 +1,1 @@
+"""storage (built by a later issue)."""
