@@ -30,7 +30,7 @@ from plantcheck.diagnosis.shape_tests import (
     relay_index,
     significant_half_cycles,
 )
-from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average
+from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average, noise_sigma
 from plantcheck.diagnosis.stiction_vote import (
     LOOP_TYPES,
     VoteParams,
@@ -71,18 +71,19 @@ def run_stiction_tests(
     assert osc.period_s is not None
     period = osc.period_s
     width = max(1, round(period / ts / 20.0))
-    band = params.oscillation.noise_band * osc.noise_sigma / np.sqrt(width)
-    min_amp = 0.3 * (osc.amplitude or 0.0)
     integrating = is_integrating(loop_type)
     names = applicable_tests(loop_type)
     out: dict[str, StictionTestResult] = {}
     es = moving_average(detrend(e), width)
+    band = params.oscillation.noise_band * noise_sigma(e) / np.sqrt(width)
+    min_amp = 0.3 * np.sqrt(2.0) * float(np.std(es))
     hc_e = significant_half_cycles(es, ts, band, min_amp, params.shape.min_half_samples)
     if "relay" in names:
         out["relay"] = relay_index(hc_e, params.shape)
     if "curve_fit" in names:
         sig = pv if integrating else op
-        ss = moving_average(detrend(sig), width)
+        # OP carries the proportional kick of the PV noise: smooth over a tenth of the period
+        ss = moving_average(detrend(sig), max(1, round(period / ts / 10.0)))
         amp = 0.3 * float(np.mean(np.abs(ss))) * np.sqrt(2.0)
         hc_s = significant_half_cycles(ss, ts, 0.1 * float(np.std(ss)), amp)
         out["curve_fit"] = curve_fit_index(hc_s, params.shape)
@@ -165,6 +166,15 @@ def diagnose(
     diag.indices["controller_fit"] = pi.fit
     diag.indices["controller_ti_s"] = pi.ti_s if pi.fit >= p.tuning.pi_min_fit else None
     osc = detect_oscillation(e, ts, p.oscillation)
+    if not osc.oscillating:
+        # A controller that rejects an oscillating load well, or PV noise larger than a small
+        # limit cycle, leaves the oscillation visible in OP only.
+        osc_op = detect_oscillation(op_s, ts, p.oscillation)
+        if osc_op.oscillating:
+            diag.notes.append(
+                "the oscillation shows in OP (the controller output cycles) more than in PV"
+            )
+            osc = osc_op
     diag.indices["hagglund_load_count"] = osc.load_count
     diag.oscillating = osc.oscillating
 
@@ -172,7 +182,13 @@ def diagnose(
         diag.notes.append(f"no sustained oscillation: {osc.reason}")
         ti = pi.ti_s if (pi.ti_s and pi.fit >= p.tuning.pi_min_fit) else None
         tf = p.tuning.idle_filter_ti * ti if ti else None
-        ii = idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
+        # The idle index assumes a self-regulating process: an integrating loop always needs
+        # OP to overshoot to bring the level back, so the index is negative whatever the tuning.
+        ii = (
+            None
+            if is_integrating(loop_type)
+            else idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
+        )
         diag.indices["idle_index"] = ii
         if ii is not None and ii > p.tuning.idle_limit:
             diag.cause = "sluggish_tuning"

@@ -41,8 +41,10 @@ class HorchParams:
     """CCF computed up to this many oscillation periods (methods §4.4)."""
     hist_bimodal: float = 0.7
     """Mixture half-separation m (in σ) at or above which the histogram is two-peaked [R]."""
-    hist_peaked_kurtosis: float = 1.0
+    hist_peaked_kurtosis: float = 0.4
     """Excess kurtosis above which a single-peaked histogram counts as stiction [R]."""
+    hist_scale_per_period: float = 10.0
+    """The second difference is taken over 1/this of the oscillation period [R]."""
 
 
 def phase_index(ccf: FloatArray, lags: np.ndarray) -> tuple[float, float, float] | None:
@@ -107,14 +109,16 @@ def horch_histogram(
 ) -> StictionTestResult:
     """Horch's second-difference histogram test for integrating (level) loops.
 
-    The PV is smoothed over 1/20 of the oscillation period, differenced twice, standardised;
+    The PV is smoothed and differenced twice over a tenth of the oscillation period, standardised;
     a clearly two-peaked distribution means no stiction, a single sharp peak with heavy tails
     means stiction. ``value`` is the fitted mixture half-separation m (units of σ).
     """
     p = params or HorchParams()
-    width = max(1, round(period_s / ts / 20.0))
-    y = moving_average(detrend(pv), width)
-    d2 = np.diff(y, 2)[width:-width] if d2_ok(y.size, width) else np.diff(y, 2)
+    # Second difference at the scale of a tenth of the period, on the PV smoothed over the same
+    # scale: sample-to-sample second differences only show the measurement noise.
+    lag = max(1, round(period_s / ts / p.hist_scale_per_period))
+    y = moving_average(detrend(pv), lag)[lag:-lag] if pv.size > 4 * lag + 50 else detrend(pv)
+    d2 = y[2 * lag :] - 2.0 * y[lag:-lag] + y[: -2 * lag] if y.size > 2 * lag else np.empty(0)
     sd = float(d2.std())
     if d2.size < 50 or sd == 0:
         return StictionTestResult("histogram", None, "undecided", "too few samples")
@@ -132,8 +136,3 @@ def horch_histogram(
         verdict = "undecided"
     detail = f"mixture separation {m:.2f} σ, excess kurtosis {kurt:.2f}"
     return StictionTestResult("histogram", m, verdict, detail)
-
-
-def d2_ok(n: int, width: int) -> bool:
-    """True when trimming the filter edges still leaves data."""
-    return n - 2 - 2 * width > 50

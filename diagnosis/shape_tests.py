@@ -4,7 +4,7 @@
   by the first-order response to a relay (square-wave) input; SI = (E_sin − E_rel)/(E_sin + E_rel).
 - Curve fitting, He, Wang, Pottmann & Qin (2007, IECR 46:4549): half-cycles of the signal after
   the first integrator (OP for self-regulating loops, PV for integrating ones) fitted by a
-  sinusoid and a triangle; SI = MSE_sin/(MSE_sin + MSE_tri).
+  sinusoid and a triangle (apex position free); SI = MSE_sin/(MSE_sin + MSE_tri).
 - Area ratio, Singhal & Salsbury (2005, JPC 15:371): R = mean A1/A2, areas of |e| before and
   after the half-cycle peak.
 
@@ -139,8 +139,9 @@ def area_ratio(
     ratios = np.empty(hc.count)
     for i, (a, b) in enumerate(zip(hc.starts, hc.stops, strict=True)):
         k = a + int(np.argmax(ax[a:b]))
-        a1 = csum[k + 1] - csum[a]
-        a2 = csum[b] - csum[k + 1]
+        # the peak sample is shared half and half, or short half-cycles are biased above 1
+        a1 = csum[k] - csum[a] + 0.5 * ax[k]
+        a2 = csum[b] - csum[k + 1] + 0.5 * ax[k]
         ratios[i] = a1 / a2 if a2 > 0 else 10.0
     # geometric mean: growing and decaying cycles (random excitation) cancel out
     r = float(np.exp(np.mean(np.log(np.clip(ratios, 0.1, 10.0)))))

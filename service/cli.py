@@ -239,3 +239,7 @@ def main() -> None:
     except Exception as exc:
         typer.echo(f"plantcheck: internal error: {type(exc).__name__}: {exc}", err=True)
         sys.exit(1)
+
+
+if __name__ == "__main__":  # python -m plantcheck.service.cli
+    main()

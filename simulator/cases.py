@@ -127,7 +127,7 @@ def generate_cases(
                     )
                     S = float(rng.choice([1.0, 2.0, 4.0, 8.0]))
                     J = S * float(rng.choice([0.2, 0.5, 1.0]))
-                    valve = "kano" if rep % 2 == 0 else "he"
+                    valve = "kano" if rng.uniform() < 0.5 else "he"
                     yield Case(
                         f"stiction-{valve}-S{S:g}-J{J:g}-{tag}",
                         "stiction",

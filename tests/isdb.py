@@ -22,8 +22,14 @@ ACCEPTED: dict[str, frozenset[str]] = {
     "deadzone+tight_tuning": frozenset({"stiction", "aggressive_tuning"}),
     # "no stiction" does not mean healthy (data README): anything but stiction is right
     "no_stiction": frozenset(
-        {"ok", "aggressive_tuning", "sluggish_tuning", "external_disturbance",
-         "oscillation_unknown_cause", "saturation"}
+        {
+            "ok",
+            "aggressive_tuning",
+            "sluggish_tuning",
+            "external_disturbance",
+            "oscillation_unknown_cause",
+            "saturation",
+        }
     ),
 }
 
