@@ -16,11 +16,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from isdb import ACCEPTED, load_isdb  # noqa: E402
+from isdb import ACCEPTED, load_isdb
 
-from plantcheck.diagnosis import diagnose  # noqa: E402
-from plantcheck.simulator.cases import generate_cases  # noqa: E402
-from plantcheck.simulator.loop import simulate_loop  # noqa: E402
+from plantcheck.diagnosis import diagnose
+from plantcheck.simulator.cases import generate_cases
+from plantcheck.simulator.loop import simulate_loop
 
 
 def generated(seeds: list[int], lengths: tuple[int, ...], verbose: bool) -> float:

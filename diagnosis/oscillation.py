@@ -54,6 +54,8 @@ class OscillationParams:
     """Acceptable amplitude a = this × PV range when the range is known (a = 1 %, [L])."""
     lowpass_fraction: float = 4.0
     """Second pass: moving average over 1/this of the dominant spectral period [R]."""
+    min_cycles: float = 4.0
+    """The window must hold at least this many periods (methods §4: 5–10 cycles wanted) [R]."""
     min_band_power: float = 0.3
     """Share of variance within [0.5, 2]·f_osc required for a sustained oscillation [R]."""
 
@@ -216,9 +218,13 @@ def detect_oscillation(
     regular = reg.regularity > p.regularity_limit
     enough_loads = hag.load_count >= n_needed
     strong = bp >= p.min_band_power
-    oscillating = regular and enough_loads and strong
+    cycles = xd.size * ts / period
+    enough_cycles = cycles >= p.min_cycles
+    oscillating = regular and enough_loads and strong and enough_cycles
     if oscillating:
         reason = "regular, sustained oscillation"
+    elif regular and not enough_cycles:
+        reason = f"only {cycles:.1f} periods of {period:.0f} s in the window ({p.min_cycles:g})"
     elif not regular:
         reason = f"irregular (r = {reg.regularity:.2f} <= {p.regularity_limit:g})"
     elif not enough_loads:

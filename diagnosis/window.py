@@ -40,7 +40,8 @@ class WindowParams:
     saturation_band: float = 2.0
     """OP within this many % of 0 or 100 counts as saturated (``controllerPlotFcn3.m`` [V])."""
     saturation_pin: float = 0.1
-    """A saturated OP sample lies within this many % of the window's own extreme (clamped) [R]."""
+    """A saturated OP sample lies within this many % (at most 5 % of the OP range) of the
+    window's own extreme: a clamped output sits at its limit [R]."""
     saturation_fraction: float = 0.5
     """Saturated longer than this fraction of the window -> ``saturation`` ([V], not PCU)."""
     gi_limit: float = 0.1
@@ -216,8 +217,9 @@ def check_window(
     # A saturated controller output is clamped: it sits at its extreme value, near 0 or 100 %.
     band = p.saturation_band
     op_lo, op_hi = float(np.min(op_f)), float(np.max(op_f))
-    pinned_lo = (op_f <= band) & (op_f <= op_lo + p.saturation_pin)
-    pinned_hi = (op_f >= 100.0 - band) & (op_f >= op_hi - p.saturation_pin)
+    pin = min(p.saturation_pin, 0.05 * op_pp)
+    pinned_lo = (op_f <= band) & (op_f <= op_lo + pin)
+    pinned_hi = (op_f >= 100.0 - band) & (op_f >= op_hi - pin)
     sat_frac = float(np.mean(pinned_lo | pinned_hi))
     indices["saturation_fraction"] = sat_frac
     if sat_frac > p.saturation_fraction:

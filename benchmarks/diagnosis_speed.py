@@ -1,0 +1,64 @@
+"""Median time of the whole standard chain (plantcheck.diagnosis.diagnose) on one core.
+
+Windows of 3,600 and 86,400 samples (1 h and 1 day at 1 s) of a sticky flow loop, which runs
+every stage: window checks, oscillation, all stiction tests and the vote. Targets (issue 2):
+<= 10 ms and <= 200 ms. Pin to one core with ``taskset -c 0`` for the official figure.
+
+    python benchmarks/diagnosis_speed.py [--repeat 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+from plantcheck.diagnosis import diagnose
+from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+
+def window(n: int) -> tuple[object, ...]:
+    cfg = LoopConfig(
+        process=Process(K=1.0, tau_s=2.0, theta_s=1.0),
+        controller=PIController(Kc=0.4, Ti_s=2.0),
+        valve="kano",
+        S=3.0,
+        J=1.0,
+        noise_std=0.1,
+        disturbances=(Disturbance(random_walk_std=0.02),),
+        n_samples=n,
+        warmup_samples=300,
+        seed=3,
+    )
+    r = simulate_loop(cfg)
+    return r.pv, r.op, r.sp
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--repeat", type=int, default=30)
+    args = ap.parse_args()
+    print(f"cpu affinity: {sorted(os.sched_getaffinity(0))}")
+    for n, target_ms in ((3600, 10.0), (86400, 200.0)):
+        pv, op, sp = window(n)
+        d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow")  # type: ignore[arg-type]
+        times = []
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            diagnose(pv, op, 1.0, sp=sp, loop_type="flow")  # type: ignore[arg-type]
+            times.append(time.perf_counter() - t0)
+        med = statistics.median(times) * 1000
+        p90 = sorted(times)[int(0.9 * len(times))] * 1000
+        verdict = "OK" if med <= target_ms else "MISSED"
+        print(
+            f"{n:6d} samples: median {med:7.2f} ms (p90 {p90:.2f} ms)"
+            f"  target <= {target_ms:g} ms  {verdict}  cause={d.cause}"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,83 @@
+"""The command line as a user runs it: help, version, JSON contracts, long records."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from helpers import RunCli
+
+from plantcheck.diagnosis.result import CAUSES
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "simulator" / "examples" / "sticky_flow.csv"
+DIAG_KEYS = {
+    "schema", "loop_type", "chain", "samples", "sample_time_s", "cause", "confidence",
+    "oscillating", "oscillation", "stiction", "valve", "indices", "actions", "notes",
+}  # fmt: skip
+
+
+def test_version_and_help(run_cli: RunCli) -> None:
+    v = run_cli("--version")
+    assert v.returncode == 0 and v.stdout.startswith("plantcheck ")
+    for cmd in ([], ["diagnose"], ["oscillation"]):
+        h = run_cli(*cmd, "--help")
+        assert h.returncode == 0 and "Usage" in h.stdout
+
+
+def test_diagnose_json_contract(run_cli: RunCli) -> None:
+    proc = run_cli("diagnose", str(EXAMPLE), "--loop-type", "flow", "--json")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert set(out) >= DIAG_KEYS
+    assert out["schema"] == "plantcheck.diagnosis/1"
+    assert out["chain"] == "standard" and out["valve"] is None
+    assert out["cause"] in CAUSES and out["cause"] == "stiction"
+    assert out["loop_type"] == "flow" and out["samples"] == 3600 and out["sample_time_s"] == 1.0
+    assert set(out["oscillation"]) == {"period_s", "amplitude", "regularity"}
+    assert out["stiction"]["S"] is None and out["stiction"]["J"] is None
+    assert out["stiction"]["tests"]["cross_correlation"] in ("odd", "even", "undecided")
+    assert {"hagglund_load_count", "idle_index", "saturation_fraction"} <= set(out["indices"])
+    assert out["actions"][0]["code"] == "valve_maintenance" and out["actions"][0]["text"]
+
+
+def test_diagnose_summary_is_readable(run_cli: RunCli) -> None:
+    proc = run_cli("diagnose", str(EXAMPLE))
+    assert proc.returncode == 0
+    assert "cause:" in proc.stdout and "action:" in proc.stdout
+
+
+def test_oscillation_json_contract(run_cli: RunCli) -> None:
+    proc = run_cli("oscillation", str(EXAMPLE), "--column", "OP", "--json")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["schema"] == "plantcheck.oscillation/1"
+    assert out["column"] == "op" and out["oscillating"] is True
+    assert 40 < out["period_s"] < 80
+    assert {"amplitude", "regularity", "samples", "sample_time_s"} <= set(out)
+
+
+def test_oscillation_bad_column(run_cli: RunCli, tmp_path: Path) -> None:
+    proc = run_cli("oscillation", str(EXAMPLE), "--column", "flowrate")
+    assert proc.returncode == 2 and "--column" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_ten_million_rows(run_cli: RunCli, tmp_path: Path) -> None:
+    """A 10-million-row file: diagnosed on its last --max-samples samples, never a traceback."""
+    n = 10_000_000
+    path = tmp_path / "big.csv"
+    rng = np.random.default_rng(0)
+    block = 100_000
+    with path.open("w") as f:
+        f.write("t,pv,op\n")
+        for start in range(0, n, block):
+            k = np.arange(start, start + block)
+            pv = 50 + np.sin(2 * np.pi * k / 60) + 0.1 * rng.normal(size=block)
+            op = 40 + np.cos(2 * np.pi * k / 60)
+            np.savetxt(f, np.column_stack([k, pv, op]), fmt=["%d", "%.3f", "%.3f"], delimiter=",")
+    proc = run_cli("diagnose", str(path), "--json")
+    assert "Traceback" not in proc.stderr
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["samples"] == 200_000
+    assert any("10000000 samples" in note for note in out["notes"])

@@ -1,0 +1,109 @@
+"""Stiction tests on textbook waveforms, bicoherence, Horch CCF, and the vote rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from plantcheck.diagnosis.bicoherence import bicoherence_indices
+from plantcheck.diagnosis.horch import horch_ccf, horch_histogram
+from plantcheck.diagnosis.shape_tests import (
+    area_ratio,
+    curve_fit_index,
+    relay_index,
+    significant_half_cycles,
+)
+from plantcheck.diagnosis.stiction_vote import applicable_tests, vote
+from plantcheck.diagnosis.test_result import StictionTestResult
+
+T = np.arange(6000, dtype=np.float64)
+PERIOD = 100.0
+SINE = np.sin(2 * np.pi * T / PERIOD)
+SQUARE = np.sign(SINE)
+TRIANGLE = 2 / np.pi * np.arcsin(SINE)
+# first-order response to a square wave (relay shape, tau = period/10)
+RELAY = lfilter([1 - np.exp(-1 / 10)], [1, -np.exp(-1 / 10)], SQUARE)
+
+
+def _hc(x: np.ndarray):  # type: ignore[no-untyped-def]
+    x = x - x.mean()
+    return significant_half_cycles(x, 1.0, 0.05, 0.3 * np.abs(x).max())
+
+
+def test_relay_index_separates_relay_from_sine() -> None:
+    assert relay_index(_hc(RELAY)).verdict == "stiction"
+    assert relay_index(_hc(SINE)).verdict == "no_stiction"
+
+
+def test_curve_fit_index_separates_triangle_from_sine() -> None:
+    tri = curve_fit_index(_hc(TRIANGLE))
+    sin = curve_fit_index(_hc(SINE))
+    assert tri.verdict == "stiction" and tri.value is not None and tri.value > 0.8
+    assert sin.verdict == "no_stiction" and sin.value is not None and sin.value < 0.2
+
+
+def test_area_ratio_relay_above_one_sine_near_one() -> None:
+    r_relay = area_ratio(RELAY, _hc(RELAY))
+    r_sine = area_ratio(SINE, _hc(SINE))
+    assert r_relay.value is not None and r_relay.value > 1.2
+    assert r_sine.value == pytest.approx(1.0, abs=0.05)
+
+
+def test_horch_ccf_odd_and_even() -> None:
+    # stiction-like: PV square, OP the integral of the error (a triangle a quarter period off)
+    odd = horch_ccf(-np.cumsum(SQUARE - SQUARE.mean()), SQUARE, 1.0, PERIOD)
+    # proportional controller on a sine -> OP = -Kc·PV -> even
+    even = horch_ccf(-0.8 * SINE, SINE, 1.0, PERIOD)
+    assert odd.label == "odd" and odd.verdict == "stiction"
+    assert even.label == "even" and even.verdict == "no_stiction"
+
+
+def test_horch_histogram_for_integrating_loops() -> None:
+    # level loop with stiction: PV triangular -> second difference spiky (single peak)
+    assert horch_histogram(TRIANGLE, 1.0, PERIOD).verdict == "stiction"
+    # sinusoidal PV -> camel-shaped histogram
+    assert horch_histogram(SINE, 1.0, PERIOD).verdict == "no_stiction"
+
+
+def test_bicoherence_linear_gaussian_vs_quadratic_coupling() -> None:
+    rng = np.random.default_rng(0)
+    n = 8192
+    gauss = rng.normal(size=n)
+    lin = bicoherence_indices(gauss, 1.0)
+    assert lin is not None and lin.nonlinear is False
+    t = np.arange(n)
+    p1, p2 = rng.uniform(0, 2 * np.pi, 2)
+    f1, f2 = 0.12, 0.19
+    coupled = (
+        np.cos(2 * np.pi * f1 * t + p1)
+        + np.cos(2 * np.pi * f2 * t + p2)
+        + 0.5 * np.cos(2 * np.pi * (f1 + f2) * t + p1 + p2)
+        + 0.1 * rng.normal(size=n)
+    )
+    nl = bicoherence_indices(coupled, 1.0)
+    assert nl is not None and nl.nonlinear is True
+
+
+def _r(verdict: str) -> StictionTestResult:
+    return StictionTestResult("t", 0.0, verdict)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("verdicts", "decision"),
+    [
+        (["stiction", "stiction", "no_stiction"], "stiction"),
+        (["stiction", "no_stiction", "undecided"], "undecided"),
+        (["no_stiction", "no_stiction", "stiction"], "no_stiction"),
+        (["stiction", "undecided", "undecided"], "undecided"),
+        (["stiction", "stiction", "not_applicable"], "stiction"),
+    ],
+)
+def test_vote_rule(verdicts: list[str], decision: str) -> None:
+    assert vote([_r(v) for v in verdicts]).decision == decision
+
+
+def test_applicability_by_loop_type() -> None:
+    assert "cross_correlation" not in applicable_tests("level")
+    assert "histogram" in applicable_tests("level")
+    assert "area_ratio" in applicable_tests("flow")
