@@ -207,6 +207,13 @@ def diagnose(
     tests = run_stiction_tests(e, op_s, pv_s, ts, osc, loop_type, p)
     v = vote(list(tests.values()), p.vote)
     diag.stiction["tests"] = _tests_json(tests)
+    diag.stiction["votes"] = {name: r.verdict for name, r in tests.items()}
+    diag.stiction["vote"] = {
+        "decision": v.decision,
+        "for": v.n_stiction,
+        "against": v.n_no_stiction,
+        "tests": v.n_tests,
+    }
     diag.stiction["detected"] = v.decision == "stiction"
     diag.indices["stiction_vote"] = v.score
     if v.decision == "stiction":

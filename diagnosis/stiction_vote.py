@@ -4,7 +4,10 @@ Applicability follows methods.md §3.4 and the thesis' Table 2.2 (Bacci di Capac
 Horch's CCF and the area ratio do not apply to integrating (level) loops, which get Horch's
 histogram test instead; the curve-fitting test reads OP for self-regulating loops and PV for
 integrating ones. Vote [R]: stiction if #stiction >= 2 and #stiction > #no_stiction;
-no stiction if #no_stiction >= 2 and #no_stiction > #stiction; otherwise undecided.
+no stiction if #no_stiction >= 2 and #no_stiction > #stiction; a tie of at least two each is
+broken by the waveform-shape tests (relay, curve fit, area ratio, histogram), since Horch's CCF
+mostly reads the controller's phase at the oscillation frequency and bicoherence flags any
+nonlinearity; otherwise undecided.
 """
 
 from __future__ import annotations
@@ -16,6 +19,9 @@ from plantcheck.diagnosis.test_result import StictionTestResult
 
 LOOP_TYPES = ("flow", "pressure", "level", "temperature", "composition", "other")
 INTEGRATING_TYPES = frozenset({"level"})
+
+SHAPE_TESTS = frozenset({"relay", "curve_fit", "area_ratio", "histogram"})
+"""Tests that read the waveform itself; they break ties in the vote."""
 
 APPLICABLE_TESTS: dict[str, tuple[str, ...]] = {
     "self_regulating": ("relay", "curve_fit", "cross_correlation", "bicoherence", "area_ratio"),
@@ -66,6 +72,12 @@ def vote(results: list[StictionTestResult], params: VoteParams | None = None) ->
         decision = "stiction"
     elif no >= p.min_votes and no > yes:
         decision = "no_stiction"
+    elif yes == no and yes >= p.min_votes:
+        # A tie is broken by the tests that look at the waveform itself.
+        shape = [r for r in used if r.name in SHAPE_TESTS]
+        s_yes = sum(r.verdict == "stiction" for r in shape)
+        s_no = sum(r.verdict == "no_stiction" for r in shape)
+        decision = "stiction" if s_yes > s_no else "no_stiction" if s_no > s_yes else "undecided"
     else:
         decision = "undecided"
     return VoteResult(decision, yes, no, n, score)

@@ -23,6 +23,7 @@ PROCESSES: dict[str, tuple[str, Process]] = {
     "pressure": ("pressure", Process("fopdt", K=1.5, tau_s=8.0, theta_s=2.0)),
     "temperature": ("temperature", Process("fopdt", K=2.0, tau_s=20.0, theta_s=5.0)),
     "temperature2": ("temperature", Process("fopdt", K=1.0, tau_s=30.0, theta_s=10.0, tau2_s=10.0)),
+    "composition": ("composition", Process("fopdt", K=1.0, tau_s=150.0, theta_s=40.0)),
     "level": ("level", Process("integrating", K=0.1, theta_s=2.0)),
 }
 
@@ -97,7 +98,7 @@ def generate_cases(
     noise_levels = (0.05, 0.2, 0.5)
     for pname, (loop_type, proc) in PROCESSES.items():
         slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
-        ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))
+        ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))  # 0.2 s (flow) … 9.5 s (analyser)
         base_pi = simc_pi(proc)
         ku, tu = ultimate_gain(proc, base_pi.Ti_s, ts)
         for n in lengths:

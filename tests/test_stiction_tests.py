@@ -85,8 +85,26 @@ def test_bicoherence_linear_gaussian_vs_quadratic_coupling() -> None:
     assert nl is not None and nl.nonlinear is True
 
 
-def _r(verdict: str) -> StictionTestResult:
-    return StictionTestResult("t", 0.0, verdict)  # type: ignore[arg-type]
+def _r(verdict: str, name: str = "t") -> StictionTestResult:
+    return StictionTestResult(name, 0.0, verdict)  # type: ignore[arg-type]
+
+
+def test_vote_tie_broken_by_shape_tests() -> None:
+    tie = [
+        _r("stiction", "curve_fit"),
+        _r("stiction", "area_ratio"),
+        _r("no_stiction", "cross_correlation"),
+        _r("no_stiction", "bicoherence"),
+        _r("undecided", "relay"),
+    ]
+    assert vote(tie).decision == "stiction"
+    flipped = [
+        _r("no_stiction", "curve_fit"),
+        _r("no_stiction", "area_ratio"),
+        _r("stiction", "cross_correlation"),
+        _r("stiction", "bicoherence"),
+    ]
+    assert vote(flipped).decision == "no_stiction"
 
 
 @pytest.mark.parametrize(
