@@ -1,0 +1,146 @@
+"""Accuracy of stiction quantification (S, J in % of valve travel) on generated loops.
+
+Case families: valve model (Kano, He) × process (flow, pressure, temperature, level) × with or
+without an added external oscillation; S from 0.5 to 10 %, J/S from 0 to 1, PV noise 0.05–0.3 %.
+For each family: median and 90th-percentile absolute error of S and J over the estimates
+reported as reliable, and the share of cases reported reliable. Healthy loops (linear valve,
+aggressive tuning or an external sinusoid) give the rate of false reliable estimates.
+Targets (issue 3): median |S error| <= 0.5 % and <= 15 % of S, median |J error| <= 0.5 %,
+no reliable estimate off by more than 50 %.
+
+    python benchmarks/quantification_accuracy.py [--per-family 12] [--seed 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from plantcheck.diagnosis.oscillation import detect_oscillation
+from plantcheck.diagnosis.quantification import quantify_stiction
+from plantcheck.simulator.cases import PROCESSES, simc_pi, ultimate_gain
+from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
+
+FAMILY_PROCESSES = ("flow", "pressure", "temperature", "level")
+
+
+def make_case(
+    rng: np.random.Generator, pname: str, valve: str, external: bool, S: float, J: float
+) -> LoopConfig:
+    _, proc = PROCESSES[pname]
+    slow = proc.tau_s + proc.theta_s if proc.kind == "fopdt" else 20.0
+    ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))
+    pi = simc_pi(proc)
+    _, tu = ultimate_gain(proc, pi.Ti_s, ts)
+    dist: tuple[Disturbance, ...] = (Disturbance(random_walk_std=0.01 * S),)
+    if external:
+        dist += (
+            Disturbance(where="load", sine_amplitude=0.5 * S, sine_period_s=float(rng.uniform(3, 8)) * tu * 5),
+        )  # fmt: skip
+    return LoopConfig(
+        process=proc,
+        controller=pi,
+        valve=valve,  # type: ignore[arg-type]
+        S=S,
+        J=J,
+        disturbances=dist,
+        noise_std=float(rng.choice([0.05, 0.1, 0.3])),
+        sample_time_s=ts,
+        n_samples=3600,
+        warmup_samples=int(10 * tu / ts) + 300,
+        seed=int(rng.integers(1 << 30)),
+    )
+
+
+def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | None, bool, list[str]]:
+    r = simulate_loop(cfg)
+    ts = cfg.sample_time_s
+    osc = detect_oscillation(r.sp - r.pv, ts)
+    if not osc.oscillating:
+        osc = detect_oscillation(r.op, ts)
+    if not osc.oscillating:
+        return None, None, False, ["not oscillating"]
+    q = quantify_stiction(r.op, r.pv, ts, osc.period_s, integrating=loop_type == "level")
+    return q.S, q.J, q.reliable, q.reasons
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--per-family", type=int, default=12)
+    ap.add_argument("--seed", type=int, default=5)
+    args = ap.parse_args()
+    rng = np.random.default_rng(args.seed)
+    t0 = time.perf_counter()
+    print(f"{'family':34s} {'n':>3s} {'reliable':>8s} {'S err med':>9s} {'S p90':>6s} "
+          f"{'S rel med':>9s} {'J err med':>9s} {'J p90':>6s} {'>50% off':>8s}")  # fmt: skip
+    all_s_err: list[float] = []
+    all_rel_err: list[float] = []
+    all_j_err: list[float] = []
+    worst = 0
+    reasons: collections.Counter[str] = collections.Counter()
+    for pname in FAMILY_PROCESSES:
+        loop_type = PROCESSES[pname][0]
+        for valve in ("kano", "he"):
+            for external in (False, True):
+                s_err, rel_err, j_err, n_rel = [], [], [], 0
+                for _ in range(args.per_family):
+                    S = float(rng.choice([0.5, 1.0, 2.0, 5.0, 10.0]))
+                    J = S * float(rng.choice([0.0, 0.5, 1.0]))
+                    cfg = make_case(rng, pname, valve, external, S, J)
+                    s_hat, j_hat, ok, why = estimate(cfg, loop_type)
+                    for w in why:
+                        reasons[w.split(" (")[0].split(":")[0][:40]] += 1
+                    if ok and s_hat is not None and j_hat is not None:
+                        n_rel += 1
+                        s_err.append(abs(s_hat - S))
+                        rel_err.append(abs(s_hat - S) / S)
+                        j_err.append(abs(j_hat - J))
+                fam = f"{pname}/{valve}/{'with' if external else 'no'} ext. osc."
+                off = sum(e > 0.5 for e in rel_err)
+                worst += off
+                all_s_err += s_err
+                all_rel_err += rel_err
+                all_j_err += j_err
+                if s_err:
+                    print(
+                        f"{fam:34s} {args.per_family:3d} {n_rel / args.per_family:8.2f} "
+                        f"{np.median(s_err):9.2f} {np.percentile(s_err, 90):6.2f} "
+                        f"{100 * np.median(rel_err):8.0f}% {np.median(j_err):9.2f} "
+                        f"{np.percentile(j_err, 90):6.2f} {off:8d}"
+                    )
+                else:
+                    print(f"{fam:34s} {args.per_family:3d} {0.0:8.2f}   (no reliable estimate)")
+    if all_s_err:
+        print(
+            f"{'ALL':34s} {'':3s} {'':8s} {np.median(all_s_err):9.2f} "
+            f"{np.percentile(all_s_err, 90):6.2f} {100 * np.median(all_rel_err):8.0f}% "
+            f"{np.median(all_j_err):9.2f} {np.percentile(all_j_err, 90):6.2f} {worst:8d}"
+        )
+    # healthy loops: any reliable S is a false alarm
+    false_rel = n_healthy = 0
+    for pname in FAMILY_PROCESSES:
+        loop_type, proc = PROCESSES[pname]
+        for kind in ("linear", "aggressive", "external"):
+            for _ in range(max(2, args.per_family // 3)):
+                cfg = make_case(rng, pname, "linear", kind == "external", 2.0, 0.0)
+                if kind == "aggressive":
+                    ku, _ = ultimate_gain(proc, cfg.controller.Ti_s, cfg.sample_time_s)
+                    cfg = replace(
+                        cfg,
+                        controller=replace(cfg.controller, Kc=0.9 * ku),
+                        disturbances=(Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=5.0),),
+                    )  # fmt: skip
+                s_hat, _, ok, _ = estimate(cfg, loop_type)
+                n_healthy += 1
+                false_rel += ok
+    print(f"healthy valves: {false_rel} of {n_healthy} got a reliable S (should be 0)")
+    print("reasons for unreliable estimates:", dict(reasons.most_common(8)))
+    print(f"{time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

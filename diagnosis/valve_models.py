@@ -1,0 +1,145 @@
+"""Data-driven valve stiction models (methods.md §5): OP -> MV, in % of valve travel.
+
+Every model runs on a whole grid of parameter pairs in one pass over time: the state is a
+vector with one entry per pair, and each time step updates all pairs at once. The single-pair
+functions are the one-row case of the grid functions. Inputs are not clipped to 0–100 % unless
+``clip=True`` (recorded OP is sometimes scaled or mean-removed).
+
+- Stenman, Gustafsson & Forsman (2003): one parameter d (stick band).
+- Choudhury, Thornhill & Shah (2005, CEP 13:641): (S, J), the clean implementation of
+  methods §5.2 (state updated only when the valve moves).
+- Kano, Maruta, Kugemoto & Shimizu (2004, DYCOPS): (S, J), logic verified in BDSIM stiction.m
+  (methods §5.3). The model used for Hammerstein quantification.
+- He, Wang, Pottmann & Qin (2007, IECR 46:4549): (f_s, f_d), S ≈ f_s + f_d, J ≈ f_s − f_d.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+def _prep(u: ArrayLike, clip: bool) -> FloatArray:
+    x = np.asarray(u, dtype=np.float64)
+    return np.clip(x, 0.0, 100.0) if clip else x
+
+
+def stenman_grid(u: ArrayLike, d: ArrayLike, clip: bool = False) -> FloatArray:
+    """Stenman model for every stick band in ``d`` (% travel); returns (len(d), len(u))."""
+    x = _prep(u, clip)
+    dd = np.atleast_1d(np.asarray(d, dtype=np.float64))
+    out = np.empty((dd.size, x.size))
+    y = np.full(dd.size, x[0])
+    for k in range(x.size):
+        move = np.abs(x[k] - y) > dd
+        y = np.where(move, x[k], y)
+        out[:, k] = y
+    return out
+
+
+def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
+    """Kano et al. (2004) model for every pair (S[i], J[i]); returns (n_pairs, len(u)).
+
+    Initial state as in BDSIM: moving, direction −1, stuck input u0 + (S − J)/2.
+    """
+    x = _prep(u, clip)
+    s = np.atleast_1d(np.asarray(S, dtype=np.float64))
+    j = np.atleast_1d(np.asarray(J, dtype=np.float64))
+    s, j = np.broadcast_arrays(s, j)
+    half = (s - j) / 2.0
+    n_p = s.size
+    out = np.empty((n_p, x.size))
+    moving = np.ones(n_p, dtype=bool)
+    d = -np.ones(n_p)
+    us = x[0] + half
+    y = np.full(n_p, x[0])
+    out[:, 0] = y
+    du_old = 0.0
+    for k in range(1, x.size):
+        uk = x[k]
+        du = uk - x[k - 1]
+        if du * du_old <= 0.0:
+            # input stops or reverses: every moving valve sticks where the input was
+            us = np.where(moving, x[k - 1], us)
+            moving[:] = False
+        rel = uk - us
+        rev = ~moving & (-d * rel > s)
+        d = np.where(rev, -d, d)
+        same = ~moving & ~rev & (d * rel > j)
+        moving = moving | rev | same
+        y = np.where(moving, uk - d * half, y)
+        out[:, k] = y
+        du_old = du
+    return out
+
+
+def kano(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
+    """Kano et al. (2004) model for one (S, J) pair (% travel)."""
+    return kano_grid(u, [S], [J], clip)[0]
+
+
+def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
+    """Choudhury et al. (2005) model (methods §5.2 clean form) for every pair (S[i], J[i])."""
+    x = _prep(u, clip)
+    s = np.atleast_1d(np.asarray(S, dtype=np.float64))
+    j = np.atleast_1d(np.asarray(J, dtype=np.float64))
+    s, j = np.broadcast_arrays(s, j)
+    half = (s - j) / 2.0
+    n_p = s.size
+    out = np.empty((n_p, x.size))
+    y = np.full(n_p, x[0])
+    stuck = np.ones(n_p, dtype=bool)
+    x_ss = np.full(n_p, x[0])
+    d_last = np.zeros(n_p)
+    out[:, 0] = y
+    for k in range(1, x.size):
+        xk = x[k]
+        v = np.sign(xk - x[k - 1])
+        keep = ~stuck & (v == d_last)
+        y = np.where(keep, xk - d_last * half, y)
+        newly = ~stuck & ~keep
+        x_ss = np.where(newly, x[k - 1], x_ss)
+        stuck = stuck | newly
+        dx = xk - x_ss
+        sdx = np.sign(dx)
+        fwd = stuck & (d_last != 0) & (sdx == d_last) & (np.abs(dx) > j)
+        rev = stuck & ~fwd & ((d_last == 0) | (sdx == -d_last)) & (np.abs(dx) > s)
+        d_last = np.where(rev, sdx, d_last)
+        go = fwd | rev
+        y = np.where(go, xk - d_last * half, y)
+        stuck = stuck & ~go
+        out[:, k] = y
+    return out
+
+
+def choudhury(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
+    """Choudhury et al. (2005) model for one (S, J) pair (% travel)."""
+    return choudhury_grid(u, [S], [J], clip)[0]
+
+
+def he_grid(u: ArrayLike, fs: ArrayLike, fd: ArrayLike, clip: bool = False) -> FloatArray:
+    """He et al. (2007) model for every pair (f_s[i], f_d[i]) (% travel)."""
+    x = _prep(u, clip)
+    a = np.atleast_1d(np.asarray(fs, dtype=np.float64))
+    b = np.atleast_1d(np.asarray(fd, dtype=np.float64))
+    a, b = np.broadcast_arrays(a, b)
+    out = np.empty((a.size, x.size))
+    y = np.full(a.size, x[0])
+    for k in range(x.size):
+        ur = x[k] - y
+        move = np.abs(ur) > a
+        y = np.where(move, x[k] - np.sign(ur) * b, y)
+        out[:, k] = y
+    return out
+
+
+def he(u: ArrayLike, fs: float, fd: float, clip: bool = False) -> FloatArray:
+    """He et al. (2007) model for one (f_s, f_d) pair."""
+    return he_grid(u, [fs], [fd], clip)[0]
+
+
+def stenman(u: ArrayLike, d: float, clip: bool = False) -> FloatArray:
+    """Stenman et al. (2003) model for one stick band d."""
+    return stenman_grid(u, [d], clip)[0]
