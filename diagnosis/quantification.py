@@ -23,27 +23,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from scipy import fft as sp_fft
 from scipy.signal import butter, lfilter
 
-from plantcheck.diagnosis.signal_tools import FloatArray
-from plantcheck.diagnosis.valve_models import kano_grid
+from plantcheck.diagnosis.signal_tools import FloatArray, moving_average
+from plantcheck.diagnosis.valve_models import he_grid, kano_grid
 
 
 @dataclass(frozen=True)
 class QuantificationParams:
     """Grid and acceptance rules of the Hammerstein quantification [R]."""
 
-    n_s: int = 20
-    """Grid points over S in (0, s_max_fraction × OP excursion]."""
+    n_s: int = 36
+    """Grid points over S in [grid_low, grid_high] × the OP excursion per half-cycle."""
+    grid_low: float = 0.3
+    """Lower end of the S grid, × the median OP excursion between reversals."""
+    grid_high: float = 1.5
+    """Upper end of the S grid, × the median OP excursion (and at most s_max_fraction·pp(OP))."""
     n_ratio: int = 11
     """Grid points over J/S in [0, max_ratio]."""
     max_ratio: float = 1.0
     """Largest J/S on the grid (1 = 'no offset' case; Kano allows overshoot J > S)."""
     s_max_fraction: float = 0.9
-    """S_max as a fraction of the OP peak-to-peak excursion (methods §6.1)."""
+    """S never exceeds this fraction of the OP peak-to-peak range (methods §6.1)."""
     refine: int = 7
     """Points per axis of the local refinement grid."""
     max_delay_fraction: float = 0.25
@@ -57,13 +62,16 @@ class QuantificationParams:
     max_region_extent: float = 0.5
     """Its S-extent must be below this fraction of S* (rule 4)."""
     max_structure_disagreement: float = 0.3
-    """Relative difference of S* between ARX and ARX-on-increments (rule 5)."""
+    """Relative difference of S* between the Kano and He valve structures (rule 5)."""
     min_moves: int = 4
     """A candidate valve trajectory must move at least this many times."""
     reference_fraction: float = 0.02
     """Deadband of the near-linear reference valve, as a fraction of S_max (rule 3)."""
     highpass_fraction: float = 0.2
-    """Prefilter cut-off as a fraction of the oscillation frequency (slow loads removed)."""
+    """Prefilter low edge as a fraction of the oscillation frequency (slow loads removed)."""
+    lowpass_multiple: float = 10.0
+    """Prefilter high edge in multiples of the oscillation frequency (stick-slip harmonics kept,
+    measurement noise removed)."""
 
 
 @dataclass(frozen=True)
@@ -79,7 +87,8 @@ class QuantificationResult:
     fit: float
     score_ratio: float
     delay_samples: int
-    S_increments: float | None = None
+    S_alternative: float | None = None
+    model: str = "kano"
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
 
@@ -93,132 +102,205 @@ class _GridFit:
     valves: FloatArray
 
 
-def _delays(v: FloatArray, y: FloatArray, max_delay: int) -> np.ndarray:
-    """Per row of ``v``: the lag 1..max_delay maximising |Σ Δv(k−l)·Δy(k)|."""
-    dv = np.diff(v, axis=1)
-    dy = np.diff(y)
-    n = dy.size
-    nfft = sp_fft.next_fast_len(2 * n, real=True)
-    cross = sp_fft.irfft(
-        np.conj(sp_fft.rfft(dv, nfft, axis=1)) * sp_fft.rfft(dy, nfft)[None, :], nfft, axis=1
-    )
-    lags = cross[:, 1 : max_delay + 1]
-    return np.asarray(1 + np.argmax(np.abs(lags), axis=1), dtype=np.intp)
+def _normal_equations(
+    v: FloatArray, y: FloatArray, delay: int, na: int, nb: int, start: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Batched ARX normal equations (A θ = b) and the residual energy per row of ``v``.
 
-
-def _fit_arx(v: FloatArray, y: FloatArray, delay: np.ndarray) -> tuple[FloatArray, FloatArray]:
-    """Batched ARX(2,2,nk) least squares and simulation; returns (score, fit%) per row."""
+    The PV regressors [-y(k-1)…-y(k-na), 1] are shared by all rows, so their blocks are
+    computed once; the valve blocks are row-wise products.
+    """
     n_p, n = v.shape
-    start = int(delay.max()) + 2
     m = n - start
     yk = y[start:]
-    y1 = y[start - 1 : n - 1]
-    y2 = y[start - 2 : n - 2]
-    rows = np.arange(n_p)[:, None]
-    idx = np.arange(start, n)[None, :] - delay[:, None]
-    v1 = v[rows, idx]
-    v2 = v[rows, idx - 1]
-    # Normal equations in blocks: the PV regressors [-y1, -y2, 1] are shared by every pair.
-    ymat = np.column_stack([-y1, -y2, np.ones(m)])
-    a_mat = np.empty((n_p, 5, 5))
-    a_mat[:, :3, :3] = ymat.T @ ymat
-    yv1 = v1 @ ymat
-    yv2 = v2 @ ymat
-    a_mat[:, :3, 3] = yv1
-    a_mat[:, :3, 4] = yv2
-    a_mat[:, 3, :3] = yv1
-    a_mat[:, 4, :3] = yv2
-    a_mat[:, 3, 3] = np.sum(v1 * v1, axis=1)
-    a_mat[:, 4, 4] = np.sum(v2 * v2, axis=1)
-    a_mat[:, 3, 4] = a_mat[:, 4, 3] = np.sum(v1 * v2, axis=1)
-    b_vec = np.empty((n_p, 5))
-    b_vec[:, :3] = ymat.T @ yk
-    b_vec[:, 3] = v1 @ yk
-    b_vec[:, 4] = v2 @ yk
-    a_mat += 1e-9 * np.eye(5)[None, :, :] * np.trace(a_mat, axis1=1, axis2=2)[:, None, None]
+    ymat = np.column_stack([-y[start - i : n - i] for i in range(1, na + 1)] + [np.ones(m)])
+    vs = [v[:, start - delay - i : n - delay - i] for i in range(nb)]
+    q = na + 1
+    dim = q + nb
+    a_mat = np.empty((n_p, dim, dim))
+    a_mat[:, :q, :q] = ymat.T @ ymat
+    b_vec = np.empty((n_p, dim))
+    b_vec[:, :q] = ymat.T @ yk
+    for i, vi in enumerate(vs):
+        cross = vi @ ymat
+        a_mat[:, :q, q + i] = cross
+        a_mat[:, q + i, :q] = cross
+        b_vec[:, q + i] = vi @ yk
+        for j in range(i, nb):
+            a_mat[:, q + i, q + j] = a_mat[:, q + j, q + i] = np.sum(vi * vs[j], axis=1)
+    a_mat += 1e-9 * np.eye(dim)[None, :, :] * np.trace(a_mat, axis1=1, axis2=2)[:, None, None]
     theta = np.linalg.solve(a_mat, b_vec[:, :, None])[:, :, 0]
+    resid = float(yk @ yk) - np.sum(theta * b_vec, axis=1)
+    return theta, resid, b_vec
+
+
+def _fit_arx(
+    v: FloatArray, y: FloatArray, max_delay: int, na: int = 2, nb: int = 2
+) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    """ARX(na, nb, nk) for every row of ``v``: the delay nk in 1..max_delay with the smallest
+    least-squares residual, then the model is simulated from v alone (output error).
+
+    Returns (score = mean squared simulation error, fit %, delay) per row.
+    """
+    n_p, n = v.shape
+    start = max_delay + nb + na
+    best_res = np.full(n_p, np.inf)
+    theta = np.zeros((n_p, na + 1 + nb))
+    delay = np.ones(n_p, dtype=np.intp)
+    for d in range(1, max_delay + 1):
+        th, res, _ = _normal_equations(v, y, d, na, nb, start)
+        better = res < best_res
+        best_res = np.where(better, res, best_res)
+        theta[better] = th[better]
+        delay[better] = d
+    q = na + 1
     score = np.full(n_p, np.inf)
     fit = np.full(n_p, -np.inf)
     warm = max(start, n // 10)
     den = float(np.sum((y[warm:] - y[warm:].mean()) ** 2)) or 1.0
     for i in range(n_p):
-        a1, a2, c, b1, b2 = theta[i]
-        if not (abs(a2) < 1.0 and abs(a1) < 1.0 + a2):
+        a = np.concatenate(([1.0], theta[i, :na]))
+        c = theta[i, na]
+        b = theta[i, q:]
+        roots = np.roots(a)
+        if np.any(np.abs(roots) >= 1.0):
             # closed-loop least squares can return an unstable fit: reflect the poles inside
             # the unit circle (same spectrum shape) and simulate that model
-            roots = np.roots([1.0, a1, a2])
             roots = np.where(np.abs(roots) > 1.0, 1.0 / np.conj(roots), roots)
             roots = np.where(np.abs(roots) > 0.999, 0.999 * roots / np.abs(roots), roots)
-            a1, a2 = np.real(np.poly(roots))[1:]
-        d = int(delay[i])
-        num = np.concatenate((np.zeros(d), [b1, b2]))
-        den_poly = np.array([1.0, a1, a2])
-        ysim = lfilter(num, den_poly, v[i] - v[i, 0]) + (c + (b1 + b2) * v[i, 0]) / (1 + a1 + a2)
+            a = np.real(np.poly(roots))
+        num = np.concatenate((np.zeros(int(delay[i])), b))
+        ysim = lfilter(num, a, v[i] - v[i, 0]) + (c + b.sum() * v[i, 0]) / a.sum()
         # the simulation starts at rest: the first tenth of the window is its warm-up
         err = (y - ysim)[warm:]
         score[i] = float(np.mean(err**2))
         fit[i] = 100.0 * (1.0 - math.sqrt(float(np.sum(err**2)) / den))
-    return score, fit
+    return score, fit, delay
 
 
 Prefilter = tuple[FloatArray, FloatArray]
 
 
-def highpass_prefilter(cutoff_cycles: float) -> Prefilter:
-    """2nd-order Butterworth high-pass at ``cutoff_cycles`` cycles per sample."""
-    b, a = butter(2, min(max(2.0 * cutoff_cycles, 1e-4), 0.5), btype="highpass")
+def band_prefilter(f_lo: float, f_hi: float) -> Prefilter:
+    """2nd-order Butterworth band-pass between ``f_lo`` and ``f_hi`` cycles per sample
+    (high-pass only when ``f_hi`` reaches the Nyquist frequency)."""
+    lo = min(max(2.0 * f_lo, 1e-4), 0.9)
+    hi = 2.0 * f_hi
+    if hi >= 0.95 or hi <= lo * 1.5:
+        b, a = butter(2, lo, btype="highpass")
+    else:
+        b, a = butter(2, [lo, hi], btype="bandpass")
     return np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
 
 
-def _evaluate(
-    u: FloatArray,
-    y: FloatArray,
-    S: FloatArray,
-    J: FloatArray,
-    max_delay: int,
-    min_moves: int,
-    prefilter: Prefilter,
-    valves: FloatArray | None = None,
-) -> _GridFit:
-    v = kano_grid(u, S, J) if valves is None else valves
+@dataclass(frozen=True)
+class _Problem:
+    """Filtered data and settings shared by every evaluation of one window."""
+
+    u: FloatArray
+    yf: FloatArray
+    prefilter: Prefilter
+    min_moves: int
+    max_delay: int
+
+
+Model = Literal["kano", "he"]
+
+
+def _valves(prob: _Problem, model: Model, S: FloatArray, J: FloatArray) -> FloatArray:
+    """Prefiltered valve trajectories for the (S, J) pairs; rows that barely move are NaN."""
+    if model == "kano":
+        v = kano_grid(prob.u, S, J)
+    else:  # He et al. (2007): S = f_s + f_d, J = f_s − f_d
+        v = he_grid(prob.u, (S + J) / 2.0, (S - J) / 2.0)
     moves = np.sum(np.abs(np.diff(v, axis=1)) > 1e-12, axis=1)
-    b, a = prefilter
-    # the same linear filter on both sides keeps PV = G·v and removes slow load drift
+    b, a = prob.prefilter
+    # the same linear filter on both sides keeps PV = G·v and removes slow load drift and noise
     vf = lfilter(b, a, v - v[:, :1], axis=1)
-    yf = lfilter(b, a, y - y[0])
-    delay = _delays(vf, yf, max_delay)
-    score, fit = _fit_arx(vf, yf, delay)
-    score = np.where(moves >= min_moves, score, np.inf)
-    return _GridFit(S, J, score, fit, delay, v)
+    vf[moves < prob.min_moves] = np.nan
+    return np.asarray(vf, dtype=np.float64)
 
 
-def _grid(s_max: float, p: QuantificationParams) -> tuple[FloatArray, FloatArray]:
-    s_vals = np.linspace(s_max / p.n_s, s_max, p.n_s)
+def _scores(
+    vf: FloatArray, prob: _Problem, order: int
+) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    bad = np.isnan(vf[:, 0])
+    score, fit, delay = _fit_arx(np.nan_to_num(vf), prob.yf, prob.max_delay, order, order)
+    return np.where(bad, np.inf, score), np.where(bad, -np.inf, fit), delay
+
+
+@dataclass(frozen=True)
+class _Search:
+    model: Model
+    S: FloatArray
+    J: FloatArray
+    score: FloatArray
+    s_best: float
+    j_best: float
+    best: float
+    fit: float
+    delay: int
+
+
+def op_excursion(u: FloatArray, period_samples: float) -> float:
+    """Median OP travel between consecutive reversals of the smoothed OP (% of OP).
+
+    In a stick-slip limit cycle the controller output reverses soon after each slip, so its
+    travel per half-cycle is S plus a small overshoot: the S grid is anchored on it.
+    """
+    width = max(1, round(period_samples / 20.0))
+    us = moving_average(u, width)
+    # reversals confirmed by hysteresis: OP must come back by a quarter of its 10–90 % range
+    band = 0.25 * float(np.percentile(us, 90) - np.percentile(us, 10))
+    turns: list[float] = []
+    hi = lo = float(us[0])
+    rising: bool | None = None
+    for x in us.tolist():
+        if rising is not False and x < hi - band:
+            if rising:
+                turns.append(hi)
+            rising, lo = False, x
+        elif rising is not True and x > lo + band:
+            if rising is False:
+                turns.append(lo)
+            rising, hi = True, x
+        hi = max(hi, x) if rising is not False else hi
+        lo = min(lo, x) if rising is not True else lo
+    if len(turns) < 3:
+        return float(np.ptp(u))
+    return float(np.median(np.abs(np.diff(turns))))
+
+
+def _grid(
+    s_lo: float, s_hi: float, p: QuantificationParams
+) -> tuple[FloatArray, FloatArray, float]:
+    s_vals = np.linspace(s_lo, s_hi, p.n_s)
     r_vals = np.linspace(0.0, p.max_ratio, p.n_ratio)
     sg, rg = np.meshgrid(s_vals, r_vals, indexing="ij")
-    return sg.ravel(), (sg * rg).ravel()
+    return sg.ravel(), (sg * rg).ravel(), float(s_vals[1] - s_vals[0])
 
 
 def _search(
-    u: FloatArray, y: FloatArray, max_delay: int, p: QuantificationParams, pf: Prefilter
-) -> tuple[_GridFit, float, float, float]:
-    """Coarse grid, then local refinement; returns (coarse fit, S*, J*, best score)."""
-    s_max = p.s_max_fraction * float(np.ptp(u))
-    s_c, j_c = _grid(s_max, p)
-    coarse = _evaluate(u, y, s_c, j_c, max_delay, p.min_moves, pf)
-    i = int(np.argmin(coarse.score))
-    s_best, j_best, best = float(coarse.S[i]), float(coarse.J[i]), float(coarse.score[i])
-    ds = s_max / p.n_s
+    prob: _Problem, model: Model, s_lo: float, s_hi: float, order: int, p: QuantificationParams
+) -> _Search:
+    """Coarse (S, J) grid, then a finer grid around the best pair."""
+    s_c, j_c, ds = _grid(s_lo, s_hi, p)
+    score, fit, delay = _scores(_valves(prob, model, s_c, j_c), prob, order)
+    i = int(np.argmin(score))
+    s_best, j_best, best = float(s_c[i]), float(j_c[i]), float(score[i])
+    fit_best, d_best = float(fit[i]), int(delay[i])
     s_f = np.linspace(max(ds / 4, s_best - ds), s_best + ds, p.refine)
     r_best = j_best / s_best if s_best > 0 else 0.0
     dr = p.max_ratio / (p.n_ratio - 1)
     r_f = np.linspace(max(0.0, r_best - dr), min(p.max_ratio, r_best + dr), p.refine)
     sg, rg = np.meshgrid(s_f, r_f, indexing="ij")
-    fine = _evaluate(u, y, sg.ravel(), (sg * rg).ravel(), max_delay, p.min_moves, pf)
-    k = int(np.argmin(fine.score))
-    if fine.score[k] < best:
-        s_best, j_best, best = float(fine.S[k]), float(fine.J[k]), float(fine.score[k])
-    return coarse, s_best, j_best, best
+    s_fl, j_fl = sg.ravel(), (sg * rg).ravel()
+    score_f, fit_f, delay_f = _scores(_valves(prob, model, s_fl, j_fl), prob, order)
+    k = int(np.argmin(score_f))
+    if score_f[k] < best:
+        s_best, j_best, best = float(s_fl[k]), float(j_fl[k]), float(score_f[k])
+        fit_best, d_best = float(fit_f[k]), int(delay_f[k])
+    return _Search(model, s_c, j_c, score, s_best, j_best, best, fit_best, d_best)
 
 
 def quantify_stiction(
@@ -237,9 +319,9 @@ def quantify_stiction(
         Controller output (% 0–100) and process variable of an oscillating, constant-SP,
         automatic-mode window without gaps.
     ts:
-        Sample time, s (only used to bound the delay search through ``period_s``).
+        Sample time, s.
     period_s:
-        Oscillation period, s; bounds the delay search to a quarter period.
+        Oscillation period, s: sets the prefilter band and bounds the delay search.
     integrating:
         Level-type loop: the linear part is fitted on PV increments.
     """
@@ -250,78 +332,61 @@ def quantify_stiction(
     if integrating:
         y = np.concatenate(([0.0], np.diff(y)))
     y = y - y.mean()
-    max_delay = 30
     period_samples = period_s / ts if period_s else y.size / 10.0
-    if period_s:
-        max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 200))
-    pf = highpass_prefilter(p.highpass_fraction / period_samples)
-    coarse, s_best, j_best, best = _search(u, y, max_delay, p, pf)
-    # Reference "linear valve": a deadband of 2 % of the grid range. With v = OP exactly, the
-    # closed-loop regressors are collinear (OP is a linear function of past PV) and the fit is
+    max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 60))
+    pf = band_prefilter(p.highpass_fraction / period_samples, p.lowpass_multiple / period_samples)
+    b, a = pf
+    prob = _Problem(u, lfilter(b, a, y - y[0]), pf, p.min_moves, max_delay)
+    s_max = p.s_max_fraction * float(np.ptp(u))
+    excursion = op_excursion(u, period_samples)
+    s_hi = min(s_max, p.grid_high * excursion)
+    s_lo = min(p.grid_low * excursion, 0.5 * s_hi)
+    kano_fit = _search(prob, "kano", s_lo, s_hi, 2, p)
+    he_fit = _search(prob, "he", s_lo, s_hi, 2, p)
+    main, other = (kano_fit, he_fit) if kano_fit.best <= he_fit.best else (he_fit, kano_fit)
+    # rule 3 reference: a deadband of 2 % of the grid range. With v = OP exactly the closed-
+    # loop regressors are collinear (OP is a linear function of past PV) and the fit is
     # meaningless; a tiny deadband removes the collinearity without modelling stiction.
-    s_ref = p.reference_fraction * p.s_max_fraction * float(np.ptp(u))
-    lin = _evaluate(u, y, np.array([s_ref]), np.array([0.0]), max_delay, 0, pf)
-    score_lin = float(lin.score[0])
-    v_best = _evaluate(u, y, np.array([s_best]), np.array([j_best]), max_delay, 0, pf)
-    fit = float(v_best.fit[0])
-    delay = int(v_best.delay[0])
-    ratio = best / score_lin if math.isfinite(score_lin) and score_lin > 0 else 0.0
+    vref = _valves(prob, "kano", np.array([p.reference_fraction * s_max]), np.array([0.0]))
+    score_lin = float(_scores(vref, prob, 2)[0][0])
+    ratio = main.best / score_lin if math.isfinite(score_lin) and score_lin > 0 else 0.0
     reasons: list[str] = []
-    if not math.isfinite(best):
-        reasons.append("no stiction model gave a stable linear part")
-    if fit < p.min_fit:
-        reasons.append(f"model fit {fit:.0f} % below {p.min_fit:.0f} %")
+    if not math.isfinite(main.best):
+        reasons.append("no candidate valve moved enough to identify a model")
+    if main.fit < p.min_fit:
+        reasons.append(f"model fit {main.fit:.0f} % below {p.min_fit:.0f} %")
     if ratio > p.max_score_ratio:
         reasons.append(
             f"stiction model explains little more than a linear valve (error ratio {ratio:.2f})"
         )
-    s_max = p.s_max_fraction * float(np.ptp(u))
-    if s_best >= 0.97 * s_max:
-        reasons.append("S* on the edge of the grid (as large as the OP excursion)")
-    good = coarse.score <= p.compact_tol * best
+    if main.s_best >= s_hi - 0.5 * (s_hi - s_lo) / p.n_s:
+        reasons.append("S* on the upper edge of the grid (as large as the OP excursion)")
+    good = main.score <= p.compact_tol * main.best
     if good.any():
-        extent = float(coarse.S[good].max() - coarse.S[good].min())
-        if s_best > 0 and extent > p.max_region_extent * s_best:
+        extent = float(main.S[good].max() - main.S[good].min())
+        if main.s_best > 0 and extent > p.max_region_extent * main.s_best:
             reasons.append(f"S not identifiable: low-error region spans {extent:.2f} % of OP")
-    # rule 5: a second structure, ARX on increments (non-stationary disturbance)
-    s_inc: float | None = None
-    if not integrating:
-        dy = np.concatenate(([0.0], np.diff(y)))
-        s_inc = _search_increments(coarse, dy, max_delay, p)
-        if s_inc is not None and s_best > 0:
-            if abs(s_inc - s_best) / s_best > p.max_structure_disagreement:
-                reasons.append(
-                    f"model structures disagree on S ({s_best:.2f} vs {s_inc:.2f} %): "
-                    "disturbance-affected"
-                )
+    # rule 5: the other valve model (Kano vs He) must agree on S
+    if (
+        main.s_best > 0
+        and abs(other.s_best - main.s_best) / main.s_best > p.max_structure_disagreement
+    ):
+        reasons.append(
+            f"valve models disagree on S ({main.model} {main.s_best:.2f} %, "
+            f"{other.model} {other.s_best:.2f} %)"
+        )
     reliable = not reasons
-    surface = {"S": coarse.S, "J": coarse.J, "score": coarse.score}
     return QuantificationResult(
-        S=s_best if reliable else None,
-        J=j_best if reliable else None,
+        S=main.s_best if reliable else None,
+        J=main.j_best if reliable else None,
         reliable=reliable,
         reasons=reasons,
-        S_best=s_best,
-        J_best=j_best,
-        fit=fit,
+        S_best=main.s_best,
+        J_best=main.j_best,
+        fit=main.fit,
         score_ratio=ratio,
-        delay_samples=delay,
-        S_increments=s_inc,
-        surface=surface,
+        delay_samples=main.delay,
+        S_alternative=other.s_best,
+        model=main.model,
+        surface={"S": main.S, "J": main.J, "score": main.score},
     )
-
-
-def _search_increments(
-    coarse: _GridFit, dy: FloatArray, max_delay: int, p: QuantificationParams
-) -> float | None:
-    """S* of the same grid with the linear part fitted between increments of v and PV
-    (ARX with integrated noise: robust to non-stationary disturbances, methods §6.1 rule 5)."""
-    v = coarse.valves
-    dv = np.concatenate((np.zeros((v.shape[0], 1)), np.diff(v, axis=1)), axis=1)
-    moves = np.sum(np.abs(dv) > 1e-12, axis=1)
-    delay = _delays(v, np.cumsum(dy), max_delay)
-    score, _ = _fit_arx(dv, dy, delay)
-    score = np.where(moves >= p.min_moves, score, np.inf)
-    if not np.isfinite(score).any():
-        return None
-    return float(coarse.S[int(np.argmin(score))])
