@@ -38,9 +38,8 @@ def make_case(
     _, tu = ultimate_gain(proc, pi.Ti_s, ts)
     dist: tuple[Disturbance, ...] = (Disturbance(random_walk_std=0.01 * S),)
     if external:
-        dist += (
-            Disturbance(where="load", sine_amplitude=0.5 * S, sine_period_s=float(rng.uniform(3, 8)) * tu * 5),
-        )  # fmt: skip
+        period = float(rng.uniform(3, 8)) * tu * 5
+        dist += (Disturbance(where="load", sine_amplitude=0.5 * S, sine_period_s=period),)
     return LoopConfig(
         process=proc,
         controller=pi,
@@ -56,6 +55,9 @@ def make_case(
     )
 
 
+VERBOSE = False
+
+
 def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | None, bool, list[str]]:
     r = simulate_loop(cfg)
     ts = cfg.sample_time_s
@@ -65,6 +67,13 @@ def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | Non
     if not osc.oscillating:
         return None, None, False, ["not oscillating"]
     q = quantify_stiction(r.op, r.pv, ts, osc.period_s, integrating=loop_type == "level")
+    if VERBOSE:
+        print(
+            f"    {loop_type:11s} valve={cfg.valve} S={cfg.S:g} J={cfg.J:g} noise={cfg.noise_std} "
+            f"-> S*={q.S_best:.2f} J*={q.J_best:.2f} ({q.model}, alt {q.S_alternative:.2f}) "
+            f"fit={q.fit:.0f} ratio={q.score_ratio:.2f} period={osc.period_s:.0f}s "
+            f"reliable={q.reliable} {q.reasons}"
+        )
     return q.S, q.J, q.reliable, q.reasons
 
 
@@ -72,7 +81,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--per-family", type=int, default=12)
     ap.add_argument("--seed", type=int, default=5)
+    ap.add_argument("-v", "--verbose", action="store_true", help="print every estimate")
     args = ap.parse_args()
+    global VERBOSE
+    VERBOSE = args.verbose
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
     print(f"{'family':34s} {'n':>3s} {'reliable':>8s} {'S err med':>9s} {'S p90':>6s} "
@@ -132,8 +144,10 @@ def main() -> None:
                     cfg = replace(
                         cfg,
                         controller=replace(cfg.controller, Kc=0.9 * ku),
-                        disturbances=(Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=5.0),),
-                    )  # fmt: skip
+                        disturbances=(
+                            Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=5.0),
+                        ),
+                    )
                 s_hat, _, ok, _ = estimate(cfg, loop_type)
                 n_healthy += 1
                 false_rel += ok

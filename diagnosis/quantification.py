@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from scipy import fft as sp_fft
+from numpy.typing import ArrayLike
 from scipy.signal import butter, lfilter
 
 from plantcheck.diagnosis.signal_tools import FloatArray, moving_average
@@ -63,6 +63,12 @@ class QuantificationParams:
     """Its S-extent must be below this fraction of S* (rule 4)."""
     max_structure_disagreement: float = 0.3
     """Relative difference of S* between the Kano and He valve structures (rule 5)."""
+    min_stuck_fraction: float = 0.5
+    """The estimated valve must be stuck at least this share of the time (rule 6) [R]."""
+    max_slips_per_period: float = 4.0
+    """At most this many valve slips per oscillation period (a cycle has about two) (rule 7)."""
+    structure_tie: float = 1.25
+    """The two structures count as equally good when their errors are within this factor."""
     min_moves: int = 4
     """A candidate valve trajectory must move at least this many times."""
     reference_fraction: float = 0.02
@@ -89,6 +95,7 @@ class QuantificationResult:
     delay_samples: int
     S_alternative: float | None = None
     model: str = "kano"
+    stuck_fraction: float = 0.0
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
 
@@ -127,11 +134,20 @@ def _normal_equations(
         a_mat[:, q + i, :q] = cross
         b_vec[:, q + i] = vi @ yk
         for j in range(i, nb):
-            a_mat[:, q + i, q + j] = a_mat[:, q + j, q + i] = np.sum(vi * vs[j], axis=1)
+            a_mat[:, q + i, q + j] = a_mat[:, q + j, q + i] = np.einsum("pm,pm->p", vi, vs[j])
     a_mat += 1e-9 * np.eye(dim)[None, :, :] * np.trace(a_mat, axis1=1, axis2=2)[:, None, None]
     theta = np.linalg.solve(a_mat, b_vec[:, :, None])[:, :, 0]
     resid = float(yk @ yk) - np.sum(theta * b_vec, axis=1)
     return theta, resid, b_vec
+
+
+def _stable(a: FloatArray) -> bool:
+    """Schur stability of 1 + a1 z^-1 (+ a2 z^-2), closed form for orders 1 and 2."""
+    if a.size == 2:
+        return bool(abs(a[1]) < 1.0)
+    if a.size == 3:
+        return bool(abs(a[2]) < 1.0 and abs(a[1]) < 1.0 + a[2])
+    return bool(np.all(np.abs(np.roots(a)) < 1.0))
 
 
 def _fit_arx(
@@ -162,10 +178,10 @@ def _fit_arx(
         a = np.concatenate(([1.0], theta[i, :na]))
         c = theta[i, na]
         b = theta[i, q:]
-        roots = np.roots(a)
-        if np.any(np.abs(roots) >= 1.0):
+        if not _stable(a):
             # closed-loop least squares can return an unstable fit: reflect the poles inside
             # the unit circle (same spectrum shape) and simulate that model
+            roots = np.roots(a)
             roots = np.where(np.abs(roots) > 1.0, 1.0 / np.conj(roots), roots)
             roots = np.where(np.abs(roots) > 0.999, 0.999 * roots / np.abs(roots), roots)
             a = np.real(np.poly(roots))
@@ -207,12 +223,17 @@ class _Problem:
 Model = Literal["kano", "he"]
 
 
+def _he_sj(u: FloatArray, S: ArrayLike, J: ArrayLike) -> FloatArray:
+    """He model parameterised by (S, J): f_s = (S + J)/2, f_d = (S − J)/2."""
+    s_arr = np.asarray(S, dtype=np.float64)
+    j_arr = np.asarray(J, dtype=np.float64)
+    return he_grid(u, (s_arr + j_arr) / 2.0, (s_arr - j_arr) / 2.0)
+
+
 def _valves(prob: _Problem, model: Model, S: FloatArray, J: FloatArray) -> FloatArray:
     """Prefiltered valve trajectories for the (S, J) pairs; rows that barely move are NaN."""
-    if model == "kano":
-        v = kano_grid(prob.u, S, J)
-    else:  # He et al. (2007): S = f_s + f_d, J = f_s − f_d
-        v = he_grid(prob.u, (S + J) / 2.0, (S - J) / 2.0)
+    # He et al. (2007) parameterised by S = f_s + f_d, J = f_s − f_d
+    v = kano_grid(prob.u, S, J) if model == "kano" else _he_sj(prob.u, S, J)
     moves = np.sum(np.abs(np.diff(v, axis=1)) > 1e-12, axis=1)
     b, a = prob.prefilter
     # the same linear filter on both sides keeps PV = G·v and removes slow load drift and noise
@@ -366,14 +387,36 @@ def quantify_stiction(
         extent = float(main.S[good].max() - main.S[good].min())
         if main.s_best > 0 and extent > p.max_region_extent * main.s_best:
             reasons.append(f"S not identifiable: low-error region spans {extent:.2f} % of OP")
-    # rule 5: the other valve model (Kano vs He) must agree on S
-    if (
-        main.s_best > 0
-        and abs(other.s_best - main.s_best) / main.s_best > p.max_structure_disagreement
-    ):
+    # rule 5: when the other valve model (Kano vs He) fits about as well, it must agree on S;
+    # when the data clearly prefer one structure, the other one's S does not matter
+    close = other.best <= p.structure_tie * main.best
+    disagree = main.s_best > 0 and (
+        abs(other.s_best - main.s_best) / main.s_best > p.max_structure_disagreement
+    )
+    if close and disagree:
         reasons.append(
             f"valve models disagree on S ({main.model} {main.s_best:.2f} %, "
             f"{other.model} {other.s_best:.2f} %)"
+        )
+    # rule 6: in a stick-slip cycle the valve is stuck most of the time (OP reverses soon
+    # after each slip); a small deadband on a smoothly cycling OP is stuck only near reversals
+    v_best = (kano_grid if main.model == "kano" else _he_sj)(u, [main.s_best], [main.j_best])[0]
+    stuck = float(np.mean(np.abs(np.diff(v_best)) < 1e-12))
+    if stuck < p.min_stuck_fraction:
+        reasons.append(
+            f"estimated valve stuck only {100 * stuck:.0f} % of the time: no stick-slip cycle"
+        )
+    # rule 7: about one slip per half-cycle. Many breakaways per period mean the model chops a
+    # smooth OP excursion into small steps (a slow disturbance seen through a deadband).
+    moving = np.abs(np.diff(v_best)) > 1e-12
+    starts = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1
+    jumps = np.abs(np.diff(v_best))[starts]
+    min_jump = 0.5 * main.j_best if main.j_best > 0.1 * main.s_best else 0.0
+    n_slips = int(np.sum(jumps >= min_jump))
+    slips_per_period = n_slips * period_samples / max(1, u.size)
+    if slips_per_period > p.max_slips_per_period:
+        reasons.append(
+            f"{slips_per_period:.1f} valve slips per oscillation period: not a stick-slip cycle"
         )
     reliable = not reasons
     return QuantificationResult(
@@ -388,5 +431,6 @@ def quantify_stiction(
         delay_samples=main.delay,
         S_alternative=other.s_best,
         model=main.model,
+        stuck_fraction=stuck,
         surface={"S": main.S, "J": main.J, "score": main.score},
     )

@@ -57,19 +57,31 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
     y = np.full(n_p, x[0])
     out[:, 0] = y
     du_old = 0.0
+    rel = np.empty(n_p)
+    tmp = np.empty(n_p)
+    rev = np.empty(n_p, dtype=bool)
+    same = np.empty(n_p, dtype=bool)
     for k in range(1, x.size):
         uk = x[k]
         du = uk - x[k - 1]
         if du * du_old <= 0.0:
             # input stops or reverses: every moving valve sticks where the input was
-            us = np.where(moving, x[k - 1], us)
+            np.copyto(us, x[k - 1], where=moving)
             moving[:] = False
-        rel = uk - us
-        rev = ~moving & (-d * rel > s)
-        d = np.where(rev, -d, d)
-        same = ~moving & ~rev & (d * rel > j)
-        moving = moving | rev | same
-        y = np.where(moving, uk - d * half, y)
+        if not moving.all():
+            np.subtract(uk, us, out=rel)
+            np.multiply(d, rel, out=tmp)
+            np.less(tmp, -s, out=rev)  # -d·rel > S: breakaway after a reversal
+            np.greater(tmp, j, out=same)  # d·rel > J: breakaway in the same direction
+            same &= ~rev
+            np.negative(d, out=d, where=rev)
+            moving |= rev
+            moving |= same
+            np.multiply(d, half, out=tmp)
+            np.subtract(uk, tmp, out=tmp)
+            np.copyto(y, tmp, where=moving)
+        else:
+            np.subtract(uk, d * half, out=y)
         out[:, k] = y
         du_old = du
     return out

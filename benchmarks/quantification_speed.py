@@ -1,0 +1,64 @@
+"""Median time of one stiction quantification (full grid and refinement) on one core.
+
+A 3,600-sample window of a sticky flow loop (Kano valve, S = 3 %, J = 1 %). Target (issue 3):
+<= 0.5 s. Pin to one core with ``taskset -c 0`` for the official figure.
+
+    python benchmarks/quantification_speed.py [--repeat 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+from plantcheck.diagnosis.oscillation import detect_oscillation  # noqa: E402
+from plantcheck.diagnosis.quantification import quantify_stiction  # noqa: E402
+from plantcheck.simulator.loop import (  # noqa: E402
+    Disturbance,
+    LoopConfig,
+    PIController,
+    Process,
+    simulate_loop,
+)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--repeat", type=int, default=10)
+    args = ap.parse_args()
+    cfg = LoopConfig(
+        process=Process(K=1.0, tau_s=2.0, theta_s=1.0),
+        controller=PIController(Kc=0.4, Ti_s=2.0),
+        valve="kano",
+        S=3.0,
+        J=1.0,
+        noise_std=0.1,
+        disturbances=(Disturbance(random_walk_std=0.02),),
+        n_samples=3600,
+        warmup_samples=300,
+        seed=3,
+    )
+    r = simulate_loop(cfg)
+    osc = detect_oscillation(r.sp - r.pv, 1.0)
+    q = quantify_stiction(r.op, r.pv, 1.0, osc.period_s)
+    times = []
+    for _ in range(args.repeat):
+        t0 = time.perf_counter()
+        quantify_stiction(r.op, r.pv, 1.0, osc.period_s)
+        times.append(time.perf_counter() - t0)
+    med = statistics.median(times)
+    print(f"cpu affinity: {sorted(os.sched_getaffinity(0))}")
+    print(
+        f"3600 samples: median {med:.3f} s per window (target <= 0.5 s) "
+        f"{'OK' if med <= 0.5 else 'MISSED'}; S = {q.S_best:.2f} % (true 3), "
+        f"J = {q.J_best:.2f} % (true 1), reliable = {q.reliable}"
+    )
+
+
+if __name__ == "__main__":
+    main()
