@@ -151,19 +151,25 @@ def _stable(a: FloatArray) -> bool:
 
 
 def _fit_arx(
-    v: FloatArray, y: FloatArray, max_delay: int, na: int = 2, nb: int = 2
+    v: FloatArray,
+    y: FloatArray,
+    max_delay: int,
+    na: int = 2,
+    nb: int = 2,
+    delays: range | None = None,
 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
     """ARX(na, nb, nk) for every row of ``v``: the delay nk in 1..max_delay with the smallest
     least-squares residual, then the model is simulated from v alone (output error).
 
-    Returns (score = mean squared simulation error, fit %, delay) per row.
+    Returns (score = mean squared simulation error, fit %, delay) per row. ``delays``
+    restricts the candidate delays (all of 1..max_delay by default).
     """
     n_p, n = v.shape
     start = max_delay + nb + na
     best_res = np.full(n_p, np.inf)
     theta = np.zeros((n_p, na + 1 + nb))
     delay = np.ones(n_p, dtype=np.intp)
-    for d in range(1, max_delay + 1):
+    for d in delays if delays is not None else range(1, max_delay + 1):
         th, res, _ = _normal_equations(v, y, d, na, nb, start)
         better = res < best_res
         best_res = np.where(better, res, best_res)
@@ -243,10 +249,10 @@ def _valves(prob: _Problem, model: Model, S: FloatArray, J: FloatArray) -> Float
 
 
 def _scores(
-    vf: FloatArray, prob: _Problem, order: int
+    vf: FloatArray, prob: _Problem, order: int, delays: range | None = None
 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
     bad = np.isnan(vf[:, 0])
-    score, fit, delay = _fit_arx(np.nan_to_num(vf), prob.yf, prob.max_delay, order, order)
+    score, fit, delay = _fit_arx(np.nan_to_num(vf), prob.yf, prob.max_delay, order, order, delays)
     return np.where(bad, np.inf, score), np.where(bad, -np.inf, fit), delay
 
 
@@ -306,7 +312,14 @@ def _search(
 ) -> _Search:
     """Coarse (S, J) grid, then a finer grid around the best pair."""
     s_c, j_c, ds = _grid(s_lo, s_hi, p)
-    score, fit, delay = _scores(_valves(prob, model, s_c, j_c), prob, order)
+    vf = _valves(prob, model, s_c, j_c)
+    # The delay belongs to the process, not to (S, J): scan every delay on a thin subset of
+    # the grid, then let each pair choose within one sample of the best.
+    thin = np.arange(0, s_c.size, max(1, s_c.size // 24))
+    t_score, _, t_delay = _scores(vf[thin], prob, order)
+    d0 = int(t_delay[int(np.argmin(t_score))]) if np.isfinite(t_score).any() else 1
+    near = range(max(1, d0 - 1), min(prob.max_delay, d0 + 1) + 1)
+    score, fit, delay = _scores(vf, prob, order, near)
     i = int(np.argmin(score))
     s_best, j_best, best = float(s_c[i]), float(j_c[i]), float(score[i])
     fit_best, d_best = float(fit[i]), int(delay[i])
@@ -316,7 +329,7 @@ def _search(
     r_f = np.linspace(max(0.0, r_best - dr), min(p.max_ratio, r_best + dr), p.refine)
     sg, rg = np.meshgrid(s_f, r_f, indexing="ij")
     s_fl, j_fl = sg.ravel(), (sg * rg).ravel()
-    score_f, fit_f, delay_f = _scores(_valves(prob, model, s_fl, j_fl), prob, order)
+    score_f, fit_f, delay_f = _scores(_valves(prob, model, s_fl, j_fl), prob, order, near)
     k = int(np.argmin(score_f))
     if score_f[k] < best:
         s_best, j_best, best = float(s_fl[k]), float(j_fl[k]), float(score_f[k])
