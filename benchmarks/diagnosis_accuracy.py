@@ -29,7 +29,9 @@ def generated(seeds: list[int], lengths: tuple[int, ...], verbose: bool) -> floa
     for seed in seeds:
         for c in generate_cases(seed=seed, lengths=lengths):
             r = simulate_loop(c.config)
-            d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type)
+            d = diagnose(
+                r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type, quantify=False
+            )
             conf[(c.cause, d.cause)] += 1
             if verbose and d.cause != c.cause:
                 o = d.oscillation or {}

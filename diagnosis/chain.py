@@ -16,12 +16,14 @@ import numpy as np
 
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
 from plantcheck.diagnosis.cause_split import SplitParams, split_cause
+from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
 from plantcheck.diagnosis.oscillation import (
     OscillationParams,
     OscillationResult,
     detect_oscillation,
 )
+from plantcheck.diagnosis.quantification import QuantificationParams, quantify_stiction
 from plantcheck.diagnosis.result import Diagnosis, action_for
 from plantcheck.diagnosis.shape_tests import (
     ShapeParams,
@@ -56,6 +58,7 @@ class ChainParams:
     vote: VoteParams = field(default_factory=VoteParams)
     tuning: TuningParams = field(default_factory=TuningParams)
     split: SplitParams = field(default_factory=SplitParams)
+    quantification: QuantificationParams = field(default_factory=QuantificationParams)
 
 
 def run_stiction_tests(
@@ -118,6 +121,7 @@ def diagnose(
     auto: BoolArray | None = None,
     loop_type: str = "other",
     params: ChainParams | None = None,
+    quantify: bool = True,
 ) -> Diagnosis:
     """Run the standard chain on one window.
 
@@ -132,6 +136,9 @@ def diagnose(
         True where the loop is in automatic; None means always.
     loop_type:
         One of ``flow``, ``pressure``, ``level``, ``temperature``, ``composition``, ``other``.
+    quantify:
+        Estimate S and J (Hammerstein identification, ~0.4 s per hour at 1 s) when the cause
+        is stiction.
     """
     if loop_type not in LOOP_TYPES:
         raise ValueError(f"loop_type must be one of {', '.join(LOOP_TYPES)}, not {loop_type!r}")
@@ -219,13 +226,53 @@ def diagnose(
     if v.decision == "stiction":
         diag.cause = "stiction"
         diag.confidence = _confidence_from_vote(v, True)
-        diag.notes.append(
-            f"stiction: {v.n_stiction} of {v.n_tests} tests agree; S and J not quantified yet"
-        )
+        diag.notes.append(f"stiction: {v.n_stiction} of {v.n_tests} tests agree")
+        if quantify:
+            _quantify_into(diag, op_s, pv_s, ts, osc, loop_type, p)
     else:
         split = split_cause(op_s, pv_s, ts, osc, tests, v, pi, loop_type, p.split)
         diag.cause = split.cause
         diag.confidence = split.confidence
         diag.notes.append(split.reason)
-    diag.actions = [action_for(diag.cause)]
+    diag.actions = [action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))]
     return diag
+
+
+def _quantify_into(
+    diag: Diagnosis,
+    op: FloatArray,
+    pv: FloatArray,
+    ts: float,
+    osc: OscillationResult,
+    loop_type: str,
+    p: ChainParams,
+) -> None:
+    """Fill stiction.S/J (% of valve travel) when the Hammerstein estimate is reliable
+    (methods §6.1), else leave them null and say why; add the apparent stiction (§6.2)."""
+    # Friction is constant within a window and a few tens of cycles identify it: quantify the
+    # most recent max(3,600 samples, 40 periods) so that day-long windows stay fast.
+    period_samples = (osc.period_s or 0.0) / ts
+    keep = int(max(p.quantification.min_window, p.quantification.window_periods * period_samples))
+    if op.size > keep:
+        op, pv = op[-keep:], pv[-keep:]
+        diag.notes.append(f"S and J estimated on the last {keep} samples of the window")
+    q = quantify_stiction(op, pv, ts, osc.period_s, is_integrating(loop_type), p.quantification)
+    diag.stiction["S"] = q.S
+    diag.stiction["J"] = q.J
+    diag.stiction["quantification"] = {
+        "reliable": q.reliable,
+        "model": q.model,
+        "fit_percent": q.fit,
+        "S_best": q.S_best,
+        "J_best": q.J_best,
+        "reasons": q.reasons,
+    }
+    ell = apparent_stiction(op, pv, ts, osc.period_s) if osc.period_s else None
+    diag.stiction["apparent"] = ell.apparent_stiction if ell is not None else None
+    if q.reliable:
+        diag.notes.append(
+            f"stiction quantified ({q.model} model, fit {q.fit:.0f} %): "
+            f"S = {q.S_best:.2f} %, J = {q.J_best:.2f} % of valve travel"
+        )
+    else:
+        diag.notes.append("S and J not reported: " + "; ".join(q.reasons))

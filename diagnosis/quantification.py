@@ -37,6 +37,10 @@ from plantcheck.diagnosis.valve_models import he_grid, kano_grid
 class QuantificationParams:
     """Grid and acceptance rules of the Hammerstein quantification [R]."""
 
+    min_window: int = 3600
+    """The chain quantifies at most the last max(min_window, window_periods × period) samples."""
+    window_periods: float = 40.0
+    """Oscillation periods kept for quantification in long windows."""
     n_s: int = 36
     """Grid points over S in [grid_low, grid_high] × the OP excursion per half-cycle."""
     grid_low: float = 0.3
@@ -138,7 +142,11 @@ def _normal_equations(
     a_mat += 1e-9 * np.eye(dim)[None, :, :] * np.trace(a_mat, axis1=1, axis2=2)[:, None, None]
     theta = np.linalg.solve(a_mat, b_vec[:, :, None])[:, :, 0]
     resid = float(yk @ yk) - np.sum(theta * b_vec, axis=1)
-    return theta, resid, b_vec
+    return (
+        np.asarray(theta, dtype=np.float64),
+        np.asarray(resid, dtype=np.float64),
+        b_vec,
+    )
 
 
 def _stable(a: FloatArray) -> bool:
@@ -420,7 +428,8 @@ def quantify_stiction(
             f"estimated valve stuck only {100 * stuck:.0f} % of the time: no stick-slip cycle"
         )
     # rule 7: about one slip per half-cycle. Many breakaways per period mean the model chops a
-    # smooth OP excursion into small steps (a slow disturbance seen through a deadband).
+    # smooth OP excursion into small steps (typically a He fit to a slow disturbance seen
+    # through a deadband).
     moving = np.abs(np.diff(v_best)) > 1e-12
     starts = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1
     jumps = np.abs(np.diff(v_best))[starts]

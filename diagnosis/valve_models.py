@@ -89,7 +89,7 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
 
 def kano(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
     """Kano et al. (2004) model for one (S, J) pair (% travel)."""
-    return kano_grid(u, [S], [J], clip)[0]
+    return np.asarray(kano_grid(u, [S], [J], clip)[0], dtype=np.float64)
 
 
 def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
@@ -128,7 +128,7 @@ def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False)
 
 def choudhury(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
     """Choudhury et al. (2005) model for one (S, J) pair (% travel)."""
-    return choudhury_grid(u, [S], [J], clip)[0]
+    return np.asarray(choudhury_grid(u, [S], [J], clip)[0], dtype=np.float64)
 
 
 def he_grid(u: ArrayLike, fs: ArrayLike, fd: ArrayLike, clip: bool = False) -> FloatArray:
@@ -149,9 +149,9 @@ def he_grid(u: ArrayLike, fs: ArrayLike, fd: ArrayLike, clip: bool = False) -> F
 
 def he(u: ArrayLike, fs: float, fd: float, clip: bool = False) -> FloatArray:
     """He et al. (2007) model for one (f_s, f_d) pair."""
-    return he_grid(u, [fs], [fd], clip)[0]
+    return np.asarray(he_grid(u, [fs], [fd], clip)[0], dtype=np.float64)
 
 
 def stenman(u: ArrayLike, d: float, clip: bool = False) -> FloatArray:
     """Stenman et al. (2003) model for one stick band d."""
-    return stenman_grid(u, [d], clip)[0]
+    return np.asarray(stenman_grid(u, [d], clip)[0], dtype=np.float64)

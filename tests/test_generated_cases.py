@@ -32,7 +32,9 @@ def confusion() -> collections.Counter[tuple[str, str]]:
     conf: collections.Counter[tuple[str, str]] = collections.Counter()
     for c in generate_cases(seed=11, lengths=(1000, 5000, 20000)):
         r = simulate_loop(c.config)
-        d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type)
+        d = diagnose(
+            r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type, quantify=False
+        )
         conf[(c.cause, d.cause)] += 1
     causes = sorted({a for a, _ in conf} | {b for _, b in conf})
     print("\ntrue \\ predicted".ljust(24) + "".join(x[:11].rjust(12) for x in causes))

@@ -1,0 +1,104 @@
+"""Stiction quantification: S and J on known sticky loops, the reliability rules on healthy
+loops, apparent stiction from the ellipse, and the maintenance trend."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plantcheck.diagnosis import diagnose
+from plantcheck.diagnosis.ellipse import apparent_stiction, fit_ellipse
+from plantcheck.diagnosis.oscillation import detect_oscillation
+from plantcheck.diagnosis.quantification import quantify_stiction
+from plantcheck.diagnosis.stiction_trend import WEEK_S, TrendParams, stiction_trend
+from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
+
+FLOW = Process(K=1.0, tau_s=2.0, theta_s=1.0)
+
+
+def _loop(**kw: object) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
+    base: dict[str, object] = dict(
+        process=FLOW,
+        controller=PIController(Kc=0.4, Ti_s=2.0),
+        noise_std=0.1,
+        n_samples=3600,
+        warmup_samples=500,
+        seed=2,
+        disturbances=(Disturbance(random_walk_std=0.02),),
+    )
+    base.update(kw)
+    r = simulate_loop(LoopConfig(**base))  # type: ignore[arg-type]
+    osc = detect_oscillation(r.sp - r.pv, 1.0)
+    return r.op, r.pv, r.sp, osc.period_s
+
+
+@pytest.mark.parametrize(("S", "J"), [(3.0, 1.0), (5.0, 2.5), (10.0, 5.0)])
+def test_sticky_flow_loop_quantified(S: float, J: float) -> None:
+    op, pv, _, period = _loop(valve="kano", S=S, J=J)
+    q = quantify_stiction(op, pv, 1.0, period)
+    assert q.reliable, q.reasons
+    assert q.S is not None and q.J is not None
+    assert pytest.approx(S, rel=0.15) == q.S
+    assert abs(q.J - J) <= max(0.5, 0.3 * J)
+
+
+@pytest.mark.parametrize("kind", ["sine_disturbance", "aggressive", "slow_sine", "random_load"])
+def test_healthy_valve_gets_no_reliable_S(kind: str) -> None:
+    dist = {
+        "sine_disturbance": (Disturbance(where="output", sine_amplitude=1.0, sine_period_s=60),),
+        "aggressive": (Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=5.0),),
+        "slow_sine": (Disturbance(where="load", sine_amplitude=3.0, sine_period_s=400),),
+        "random_load": (Disturbance(random_walk_std=0.2),),
+    }[kind]
+    kc = 1.9 if kind == "aggressive" else 0.4
+    op, pv, _, period = _loop(valve="linear", disturbances=dist, controller=PIController(kc, 2.0))
+    q = quantify_stiction(op, pv, 1.0, period or 60.0)
+    assert not q.reliable
+    assert q.S is None and q.J is None and q.reasons
+
+
+def test_diagnose_fills_S_J_only_for_stiction() -> None:
+    op, pv, sp, _ = _loop(valve="kano", S=3.0, J=1.0)
+    d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow")
+    assert d.cause == "stiction"
+    assert d.stiction["S"] == pytest.approx(3.0, rel=0.15)
+    assert "S = 3.0 %" in d.actions[0]["text"]
+    assert d.stiction["apparent"] is not None and d.stiction["apparent"] > 0
+    op, pv, sp, _ = _loop(valve="linear")
+    d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow")
+    assert d.cause != "stiction" and d.stiction["S"] is None
+
+
+def test_ellipse_fit_and_chord() -> None:
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    x = 3.0 * np.cos(t) + 1.0
+    y = 1.0 * np.sin(t) - 2.0
+    coef = fit_ellipse(x, y)
+    assert coef is not None
+    a, b, c, d, e, f = coef
+    assert abs(b) < 1e-6 * abs(a)
+    assert np.allclose(a * x * x + c * y * y + d * x + e * y + f, 0.0, atol=1e-6 * abs(f))
+    # OP lags PV by a quarter period: the chord along OP through the centre is the OP width
+    ts = 1.0
+    k = np.arange(4000)
+    op = 2.0 * np.cos(2 * np.pi * k / 100)
+    pv = np.sin(2 * np.pi * k / 100)
+    res = apparent_stiction(op, pv, ts, 100.0)
+    assert res is not None and res.apparent_stiction == pytest.approx(4.0, rel=0.02)
+
+
+def test_trend_projects_limit_crossing() -> None:
+    weeks = np.arange(10)
+    t = weeks * WEEK_S
+    S = 1.0 + 0.1 * weeks  # 0.1 %/week, 1.9 % in the last week
+    S[3] = 5.0  # one wrong window: the robust slope ignores it
+    tr = stiction_trend(t, S, 0.5 * S, np.ones(10, bool), TrendParams(limit=2.0))
+    assert tr.slope_per_week == pytest.approx(0.1, rel=0.05)
+    assert tr.projected_crossing_s == pytest.approx(10 * WEEK_S, rel=0.02)
+    assert not tr.above_limit
+    flat = stiction_trend(t, np.full(10, 1.0), np.zeros(10), np.ones(10, bool))
+    assert flat.projected_crossing_s is None
+    few = stiction_trend(t[:2], S[:2], S[:2], [True, True])
+    assert few.slope_per_week is None and "at least" in few.note
+    none = stiction_trend(t, S, S, np.zeros(10, bool))
+    assert none.n_used == 0 and none.current_S is None

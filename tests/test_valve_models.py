@@ -1,0 +1,68 @@
+"""Vectorised valve models (diagnosis.valve_models) against hand-worked sequences, the
+step-wise simulator valves, and the grid against the single-pair functions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plantcheck.diagnosis.valve_models import (
+    choudhury,
+    choudhury_grid,
+    he,
+    he_grid,
+    kano,
+    kano_grid,
+    stenman,
+    stenman_grid,
+)
+from plantcheck.simulator.valves import HeValve, KanoValve
+
+RNG = np.random.default_rng(0)
+U = 50 + np.cumsum(RNG.normal(0, 0.3, 3000)) + 5 * np.sin(np.arange(3000) / 50)
+
+
+def test_kano_hand_worked_reversal() -> None:
+    # S = 4, J = 2: ramp 50 -> 60 (0.5 steps), reverse to 50
+    u = np.concatenate([np.arange(50, 60.01, 0.5), np.arange(59.5, 49.99, -0.5)])
+    v = kano(u, 4.0, 2.0)
+    i60 = int(np.argmax(u))
+    assert v[i60] == pytest.approx(59.0)  # moving up, lagging by (S - J)/2 = 1
+    # after the reversal: stuck while the input comes back by no more than S = 4
+    back = u[i60:] >= 56.0
+    assert np.all(v[i60:][back] == pytest.approx(59.0))
+    first = i60 + int(np.argmax(~back))
+    assert u[first] == pytest.approx(55.5)
+    assert v[first] == pytest.approx(56.5)  # u + (S - J)/2: a jump of 2.5 (J + 0.5 overshoot)
+
+
+def test_choudhury_equals_kano_and_grid_equals_single() -> None:
+    S = np.array([0.5, 2.0, 4.0, 4.0, 3.0])
+    J = np.array([0.0, 1.0, 2.0, 4.0, 3.6])
+    grid_k = kano_grid(U, S, J)
+    grid_c = choudhury_grid(U, S, J)
+    for i in range(S.size):
+        assert np.array_equal(grid_k[i], kano(U, S[i], J[i]))
+        assert np.allclose(grid_c[i], choudhury(U, S[i], J[i]))
+        assert np.allclose(grid_c[i], grid_k[i])  # methods §5.2: identical outputs
+
+
+@pytest.mark.parametrize(("S", "J"), [(4.0, 2.0), (3.0, 0.0), (4.0, 4.0), (2.0, 3.0)])
+def test_grid_models_match_step_wise_simulator(S: float, J: float) -> None:
+    kv = KanoValve(S, J)
+    assert np.array_equal(kano(U, S, J, clip=True), [kv.step(x) for x in U])
+    hv = HeValve((S + J) / 2, max((S - J) / 2, 0.0))
+    assert np.allclose(he(U, (S + J) / 2, max((S - J) / 2, 0.0)), [hv.step(x) for x in U])
+
+
+def test_he_saw_tooth_on_slow_ramp() -> None:
+    u = np.arange(50.0, 70.0, 0.01)
+    v = he_grid(u, [3.0], [1.0])[0]
+    jumps = np.abs(np.diff(v))
+    assert np.allclose(jumps[jumps > 1e-9], 2.0, atol=0.02)
+
+
+def test_stenman_stick_band() -> None:
+    u = np.array([50.0, 50.5, 50.9, 51.2, 51.0, 49.9, 49.7])
+    assert stenman(u, 1.0).tolist() == [50.0, 50.0, 50.0, 51.2, 51.2, 49.9, 49.9]
+    assert stenman_grid(u, [0.0, 1.0]).shape == (2, 7)
