@@ -16,26 +16,15 @@ import statistics
 import time
 
 from plantcheck.diagnosis import diagnose
-from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
+from plantcheck.simulator.cases import sticky_flow_config
+from plantcheck.simulator.loop import simulate_loop
 
 for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
 
 def window(n: int) -> tuple[object, ...]:
-    cfg = LoopConfig(
-        process=Process(K=1.0, tau_s=2.0, theta_s=1.0),
-        controller=PIController(Kc=0.4, Ti_s=2.0),
-        valve="kano",
-        S=3.0,
-        J=1.0,
-        noise_std=0.1,
-        disturbances=(Disturbance(random_walk_std=0.02),),
-        n_samples=n,
-        warmup_samples=300,
-        seed=3,
-    )
-    r = simulate_loop(cfg)
+    r = simulate_loop(sticky_flow_config(n))
     return r.pv, r.op, r.sp
 
 

@@ -66,12 +66,13 @@ def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | Non
         osc = detect_oscillation(r.op, ts)
     if not osc.oscillating:
         return None, None, False, ["not oscillating"]
-    q = quantify_stiction(r.op, r.pv, ts, osc.period_s, integrating=loop_type == "level")
+    q = quantify_stiction(r.op, r.pv, ts, osc.period_s)
     if VERBOSE:
         print(
             f"    {loop_type:11s} valve={cfg.valve} S={cfg.S:g} J={cfg.J:g} noise={cfg.noise_std} "
             f"-> S*={q.S_best:.2f} J*={q.J_best:.2f} ({q.model}, alt {q.S_alternative:.2f}) "
             f"fit={q.fit:.0f} ratio={q.score_ratio:.2f} period={osc.period_s:.0f}s "
+            f"S*/excursion={q.S_best / q.op_excursion if q.op_excursion else 0:.2f} "
             f"reliable={q.reliable} {q.reasons}"
         )
     return q.S, q.J, q.reliable, q.reasons

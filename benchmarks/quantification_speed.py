@@ -18,31 +18,15 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from plantcheck.diagnosis.oscillation import detect_oscillation  # noqa: E402
 from plantcheck.diagnosis.quantification import quantify_stiction  # noqa: E402
-from plantcheck.simulator.loop import (  # noqa: E402
-    Disturbance,
-    LoopConfig,
-    PIController,
-    Process,
-    simulate_loop,
-)
+from plantcheck.simulator.cases import sticky_flow_config  # noqa: E402
+from plantcheck.simulator.loop import simulate_loop  # noqa: E402
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=10)
     args = ap.parse_args()
-    cfg = LoopConfig(
-        process=Process(K=1.0, tau_s=2.0, theta_s=1.0),
-        controller=PIController(Kc=0.4, Ti_s=2.0),
-        valve="kano",
-        S=3.0,
-        J=1.0,
-        noise_std=0.1,
-        disturbances=(Disturbance(random_walk_std=0.02),),
-        n_samples=3600,
-        warmup_samples=300,
-        seed=3,
-    )
+    cfg = sticky_flow_config(3600)
     r = simulate_loop(cfg)
     osc = detect_oscillation(r.sp - r.pv, 1.0)
     q = quantify_stiction(r.op, r.pv, 1.0, osc.period_s)

@@ -256,7 +256,7 @@ def _quantify_into(
     if op.size > keep:
         op, pv = op[-keep:], pv[-keep:]
         diag.notes.append(f"S and J estimated on the last {keep} samples of the window")
-    q = quantify_stiction(op, pv, ts, osc.period_s, is_integrating(loop_type), p.quantification)
+    q = quantify_stiction(op, pv, ts, osc.period_s, p.quantification)
     diag.stiction["S"] = q.S
     diag.stiction["J"] = q.J
     diag.stiction["quantification"] = {

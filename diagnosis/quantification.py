@@ -10,7 +10,8 @@ For every (S, J) on a grid (S up to 0.9 × the OP excursion, J/S from 0 to 1) th
 fitted by least squares (all pairs in one batched solve), the delay nk is taken from the
 cross-correlation of the increments, and the pair is ranked by the *simulation* error of the
 model (one-step prediction error hardly depends on (S, J), methods §6.1). The best pair is
-refined on a finer local grid. Integrating (level) loops are fitted on the PV increments.
+refined on a finer local grid. Integrating (level) loops use the same structure: the band-pass
+prefilter removes the integrator's drift, and fitting PV increments instead only amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
 simulated fit is good enough, the stiction model explains clearly more than a linear valve,
@@ -71,6 +72,8 @@ class QuantificationParams:
     """The estimated valve must be stuck at least this share of the time (rule 6) [R]."""
     max_slips_per_period: float = 4.0
     """At most this many valve slips per oscillation period (a cycle has about two) (rule 7)."""
+    min_excursion_share: float = 0.4
+    """S* must be at least this share of the OP travel per half-cycle (rule 8) [R]."""
     structure_tie: float = 1.25
     """The two structures count as equally good when their errors are within this factor."""
     min_moves: int = 4
@@ -100,6 +103,7 @@ class QuantificationResult:
     S_alternative: float | None = None
     model: str = "kano"
     stuck_fraction: float = 0.0
+    op_excursion: float = 0.0
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
 
@@ -350,7 +354,6 @@ def quantify_stiction(
     pv: FloatArray,
     ts: float,
     period_s: float | None = None,
-    integrating: bool = False,
     params: QuantificationParams | None = None,
 ) -> QuantificationResult:
     """Estimate S and J (% of valve travel) from OP and PV by Hammerstein identification.
@@ -364,15 +367,11 @@ def quantify_stiction(
         Sample time, s.
     period_s:
         Oscillation period, s: sets the prefilter band and bounds the delay search.
-    integrating:
-        Level-type loop: the linear part is fitted on PV increments.
     """
     p = params or QuantificationParams()
     u = np.asarray(op, dtype=np.float64)
     u = u - u.mean()
     y = np.asarray(pv, dtype=np.float64)
-    if integrating:
-        y = np.concatenate(([0.0], np.diff(y)))
     y = y - y.mean()
     period_samples = period_s / ts if period_s else y.size / 10.0
     max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 60))
@@ -440,6 +439,13 @@ def quantify_stiction(
         reasons.append(
             f"{slips_per_period:.1f} valve slips per oscillation period: not a stick-slip cycle"
         )
+    # rule 8: in a stick-slip (or backlash) cycle the OP reverses soon after the valve breaks
+    # free, so S is most of the OP travel per half-cycle
+    if excursion > 0 and main.s_best < p.min_excursion_share * excursion:
+        reasons.append(
+            f"S* = {main.s_best:.2f} % is a small part of the OP travel per half-cycle "
+            f"({excursion:.2f} %): the cycle is not explained by the valve"
+        )
     reliable = not reasons
     return QuantificationResult(
         S=main.s_best if reliable else None,
@@ -454,5 +460,6 @@ def quantify_stiction(
         S_alternative=other.s_best,
         model=main.model,
         stuck_fraction=stuck,
+        op_excursion=excursion,
         surface={"S": main.S, "J": main.J, "score": main.score},
     )

@@ -26,6 +26,14 @@ def _prep(u: ArrayLike, clip: bool) -> FloatArray:
     return np.clip(x, 0.0, 100.0) if clip else x
 
 
+def _pairs(p1: ArrayLike, p2: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Two parameter arrays broadcast to one pair per row."""
+    a = np.atleast_1d(np.asarray(p1, dtype=np.float64))
+    b = np.atleast_1d(np.asarray(p2, dtype=np.float64))
+    a2, b2 = np.broadcast_arrays(a, b)
+    return np.asarray(a2, dtype=np.float64), np.asarray(b2, dtype=np.float64)
+
+
 def stenman_grid(u: ArrayLike, d: ArrayLike, clip: bool = False) -> FloatArray:
     """Stenman model for every stick band in ``d`` (% travel); returns (len(d), len(u))."""
     x = _prep(u, clip)
@@ -45,9 +53,7 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
     Initial state as in BDSIM: moving, direction −1, stuck input u0 + (S − J)/2.
     """
     x = _prep(u, clip)
-    s = np.atleast_1d(np.asarray(S, dtype=np.float64))
-    j = np.atleast_1d(np.asarray(J, dtype=np.float64))
-    s, j = np.broadcast_arrays(s, j)
+    s, j = _pairs(S, J)
     half = (s - j) / 2.0
     n_p = s.size
     out = np.empty((n_p, x.size))
@@ -95,9 +101,7 @@ def kano(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
 def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
     """Choudhury et al. (2005) model (methods §5.2 clean form) for every pair (S[i], J[i])."""
     x = _prep(u, clip)
-    s = np.atleast_1d(np.asarray(S, dtype=np.float64))
-    j = np.atleast_1d(np.asarray(J, dtype=np.float64))
-    s, j = np.broadcast_arrays(s, j)
+    s, j = _pairs(S, J)
     half = (s - j) / 2.0
     n_p = s.size
     out = np.empty((n_p, x.size))
@@ -134,9 +138,7 @@ def choudhury(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArra
 def he_grid(u: ArrayLike, fs: ArrayLike, fd: ArrayLike, clip: bool = False) -> FloatArray:
     """He et al. (2007) model for every pair (f_s[i], f_d[i]) (% travel)."""
     x = _prep(u, clip)
-    a = np.atleast_1d(np.asarray(fs, dtype=np.float64))
-    b = np.atleast_1d(np.asarray(fd, dtype=np.float64))
-    a, b = np.broadcast_arrays(a, b)
+    a, b = _pairs(fs, fd)
     out = np.empty((a.size, x.size))
     y = np.full(a.size, x[0])
     for k in range(x.size):

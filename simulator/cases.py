@@ -184,3 +184,19 @@ def generate_cases(
                             **common,  # type: ignore[arg-type]
                         ),
                     )
+
+
+def sticky_flow_config(n_samples: int = 3600, seed: int = 3) -> LoopConfig:
+    """The reference sticky flow loop of the benchmarks: Kano valve S = 3 %, J = 1 %, Ts = 1 s."""
+    return LoopConfig(
+        process=Process(K=1.0, tau_s=2.0, theta_s=1.0),
+        controller=PIController(Kc=0.4, Ti_s=2.0),
+        valve="kano",
+        S=3.0,
+        J=1.0,
+        noise_std=0.1,
+        disturbances=(Disturbance(random_walk_std=0.02),),
+        n_samples=n_samples,
+        warmup_samples=300,
+        seed=seed,
+    )
