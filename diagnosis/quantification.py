@@ -42,13 +42,13 @@ class QuantificationParams:
     """The chain quantifies at most the last max(min_window, window_periods × period) samples."""
     window_periods: float = 40.0
     """Oscillation periods kept for quantification in long windows."""
-    n_s: int = 36
+    n_s: int = 30
     """Grid points over S in [grid_low, grid_high] × the OP excursion per half-cycle."""
     grid_low: float = 0.3
     """Lower end of the S grid, × the median OP excursion between reversals."""
     grid_high: float = 1.5
     """Upper end of the S grid, × the median OP excursion (and at most s_max_fraction·pp(OP))."""
-    n_ratio: int = 11
+    n_ratio: int = 21
     """Grid points over J/S in [0, max_ratio]."""
     max_ratio: float = 1.0
     """Largest J/S on the grid (1 = 'no offset' case; Kano allows overshoot J > S)."""
