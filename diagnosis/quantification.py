@@ -23,7 +23,7 @@ Otherwise S and J are None and ``reasons`` says why.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -50,6 +50,8 @@ class QuantificationParams:
     """Upper end of the S grid, × the median OP excursion (and at most s_max_fraction·pp(OP))."""
     n_ratio: int = 21
     """Grid points over J/S in [0, max_ratio]."""
+    he_n_ratio: int = 11
+    """Grid points over J/S for the He structure's coarse pass."""
     max_ratio: float = 1.0
     """Largest J/S on the grid (1 = 'no offset' case; Kano allows overshoot J > S)."""
     s_max_fraction: float = 0.9
@@ -72,6 +74,8 @@ class QuantificationParams:
     """The estimated valve must be stuck at least this share of the time (rule 6) [R]."""
     max_slips_per_period: float = 4.0
     """At most this many valve slips per oscillation period (a cycle has about two) (rule 7)."""
+    tradeoff_factors: tuple[float, ...] = (0.6, 0.7, 0.8, 1.25, 1.4)
+    """S/S* values checked, every delay free, for the S–delay trade-off (rule 4b) [R]."""
     min_excursion_share: float = 0.4
     """S* must be at least this share of the OP travel per half-cycle (rule 8) [R]."""
     structure_tie: float = 1.25
@@ -383,7 +387,8 @@ def quantify_stiction(
     s_hi = min(s_max, p.grid_high * excursion)
     s_lo = min(p.grid_low * excursion, 0.5 * s_hi)
     kano_fit = _search(prob, "kano", s_lo, s_hi, 2, p)
-    he_fit = _search(prob, "he", s_lo, s_hi, 2, p)
+    # the He structure mainly checks the Kano one (rule 5): a coarser J/S grid before refining
+    he_fit = _search(prob, "he", s_lo, s_hi, 2, replace(p, n_ratio=p.he_n_ratio))
     main, other = (kano_fit, he_fit) if kano_fit.best <= he_fit.best else (he_fit, kano_fit)
     # rule 3 reference: a deadband of 2 % of the grid range. With v = OP exactly the closed-
     # loop regressors are collinear (OP is a linear function of past PV) and the fit is
@@ -407,6 +412,21 @@ def quantify_stiction(
         extent = float(main.S[good].max() - main.S[good].min())
         if main.s_best > 0 and extent > p.max_region_extent * main.s_best:
             reasons.append(f"S not identifiable: low-error region spans {extent:.2f} % of OP")
+    # rule 4b: S and the delay can trade off (a smaller S slips earlier, a longer delay shifts
+    # the response back). Along S with J/S fixed and every delay free, no clearly different S
+    # may fit as well as S*.
+    if main.s_best > 0 and math.isfinite(main.best):
+        ratio_j = main.j_best / main.s_best
+        s_line = main.s_best * np.array(p.tradeoff_factors)
+        line_score, _, _ = _scores(
+            _valves(prob, main.model, s_line, ratio_j * s_line), prob, 2, range(1, max_delay + 1)
+        )
+        rivals = s_line[line_score <= p.compact_tol * main.best]
+        if rivals.size:
+            reasons.append(
+                f"S not identifiable: S = {rivals.min():.2f}…{rivals.max():.2f} % fits as well "
+                "with another delay"
+            )
     # rule 5: when the other valve model (Kano vs He) fits about as well, it must agree on S;
     # when the data clearly prefer one structure, the other one's S does not matter
     close = other.best <= p.structure_tie * main.best
