@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from scipy.optimize import brentq
 
+from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process
 
 PROCESSES: dict[str, tuple[str, Process]] = {
@@ -107,7 +109,7 @@ def generate_cases(
                 for rep in range(per_cell):
                     s = int(rng.integers(1 << 30))
                     tag = f"{pname}-n{n}-noise{noise}-r{rep}"
-                    common = dict(
+                    common: dict[str, object] = dict(
                         process=proc,
                         sample_time_s=ts,
                         n_samples=n,
@@ -200,3 +202,125 @@ def sticky_flow_config(n_samples: int = 3600, seed: int = 3) -> LoopConfig:
         warmup_samples=300,
         seed=seed,
     )
+
+
+@dataclass(frozen=True)
+class ActuatorCase:
+    """A labelled loop with a measured stem position: true loop cause and true valve state."""
+
+    name: str
+    cause: str
+    valve_state: str
+    loop_type: str
+    config: LoopConfig
+    S: float | None = None
+    J: float | None = None
+
+
+ACTUATOR_PROCESSES = ("flow", "pressure", "temperature", "level")
+
+
+def _actuator_case(
+    name: str,
+    cause: str,
+    state: str,
+    *,
+    loop_type: str,
+    tag: str,
+    common: dict[str, object],
+    loads: tuple[Disturbance, ...],
+    **kw: object,
+) -> ActuatorCase:
+    cfg_kw = {**common, "disturbances": loads, **kw}
+    friction = state in ("stiction", "deadband_backlash")
+    return ActuatorCase(
+        f"{name}-{tag}",
+        cause,
+        state,
+        loop_type,
+        LoopConfig(**cfg_kw),  # type: ignore[arg-type]
+        kw.get("S") if friction else None,  # type: ignore[arg-type]
+        kw.get("J") if friction else None,  # type: ignore[arg-type]
+    )
+
+
+def generate_actuator_cases(seed: int = 1, per_cell: int = 2) -> Iterator[ActuatorCase]:
+    """Cases for the advanced chain: every actuator class and healthy valves in oscillating
+    loops (aggressive tuning, external disturbance), over loop types, noise levels and sizes."""
+    rng = np.random.default_rng(seed)
+    for pname in ACTUATOR_PROCESSES:
+        loop_type, proc = PROCESSES[pname]
+        slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
+        ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))
+        base_pi = simc_pi(proc)
+        ku, tu = ultimate_gain(proc, base_pi.Ti_s, ts)
+        n = 3600
+        dur = n * ts
+        for rep in range(per_cell):
+            # noise as seen on OP (Kc·σ_PV): 0.05–0.3 % of travel whatever the loop's gain
+            op_noise = float(rng.choice([0.05, 0.15, 0.3]))
+            noise = op_noise / abs(base_pi.Kc)
+            common: dict[str, object] = dict(
+                process=proc,
+                sample_time_s=ts,
+                n_samples=n,
+                warmup_samples=int(20 * tu / ts) + 200,
+                noise_std=noise,
+                mv_noise_std=0.03,
+                seed=int(rng.integers(1 << 30)),
+                controller=base_pi,
+            )
+            loads = (_random_loads(rng, dur, 10 * tu, 2.0),)
+            tag = f"{pname}-opnoise{op_noise}-r{rep}"
+
+            case = partial(_actuator_case, loop_type=loop_type, tag=tag, common=common, loads=loads)
+            yield case("valve-ok", "ok", "ok", actuator=ActuatorSpec())
+            S = float(rng.choice([1.0, 2.0, 4.0]))
+            yield case(
+                f"stiction-S{S:g}", "stiction", "stiction",
+                valve="kano", S=S, J=S * float(rng.choice([0.5, 1.0])), actuator=ActuatorSpec(),
+            )  # fmt: skip
+            yield case(
+                f"deadband-S{S:g}", "deadband_backlash", "deadband_backlash",
+                valve="kano", S=S, J=0.0, actuator=ActuatorSpec(),
+            )  # fmt: skip
+            bias = float(rng.choice([-1, 1])) * float(rng.uniform(2.0, 5.0))
+            gain = float(rng.choice([1.0, 0.85, 1.15]))
+            yield case(
+                "calibration", "positioner_fault", "positioner_fault",
+                actuator=ActuatorSpec("calibration", bias=bias, gain=gain),
+            )  # fmt: skip
+            yield case(
+                "hunting", "positioner_tuning", "positioner_tuning",
+                actuator=ActuatorSpec(
+                    "hunting",
+                    hunting_amplitude=float(rng.uniform(0.5, 2.0)),
+                    hunting_period_s=float(rng.uniform(3.0, 10.0)) * max(ts, 0.5),
+                ),
+            )  # fmt: skip
+            yield case(
+                "air-leakage", "air_leakage", "air_leakage",
+                actuator=ActuatorSpec("air_leakage", leak_rate=float(rng.uniform(2.0, 6.0)) / dur),
+            )  # fmt: skip
+            yield case(
+                "undersized", "actuator_undersized", "actuator_undersized",
+                disturbances=(_random_loads(rng, dur, 5 * tu, 8.0),),
+                actuator=ActuatorSpec("rate_limit", rate=float(rng.uniform(0.05, 0.2))),
+            )  # fmt: skip
+            frac = float(rng.uniform(0.8, 0.95))
+            yield case(
+                "aggressive-healthy-valve", "aggressive_tuning", "ok",
+                controller=replace(base_pi, Kc=frac * ku),
+                disturbances=(Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=tu),),
+                actuator=ActuatorSpec(),
+            )  # fmt: skip
+            period = min(
+                float(rng.uniform(5, 50)) * (proc.tau_s if proc.kind == "fopdt" else tu), dur / 8
+            )
+            yield case(
+                "disturbance-healthy-valve", "external_disturbance", "ok",
+                disturbances=(
+                    Disturbance(sine_amplitude=float(rng.uniform(2.0, 6.0)), sine_period_s=period),
+                ),
+                actuator=ActuatorSpec(),
+            )  # fmt: skip

@@ -19,6 +19,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.valves import HeValve, KanoValve, LinearValve, Valve
 
 FloatArray = NDArray[np.float64]
@@ -88,6 +89,10 @@ class LoopConfig:
     n_samples: int = 3600
     warmup_samples: int = 0
     seed: int = 0
+    actuator: ActuatorSpec | None = None
+    """Positioner and actuator fault between OP and the stem; None: the stem is the valve."""
+    mv_noise_std: float = 0.0
+    """Measurement noise of the stem position sensor, % of travel."""
 
 
 @dataclass(frozen=True)
@@ -154,7 +159,9 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
 
     p = cfg.process
     c = cfg.controller
-    valve = make_valve(cfg)
+    valve: Valve = make_valve(cfg)
+    if cfg.actuator is not None:
+        valve = cfg.actuator.build(valve, ts)
     delay = max(0, round(p.theta_s / ts))
     queue: deque[float] = deque([cfg.u0] * delay, maxlen=delay) if delay else deque()
     a1 = math.exp(-ts / p.tau_s) if p.kind == "fopdt" else 1.0
@@ -193,6 +200,8 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
                 x2 = a2 * x2 + (1 - a2) * x1
         else:
             x1 = x1 + p.K * ts * u_del
+    if cfg.mv_noise_std:
+        mv = mv + rng.normal(0.0, cfg.mv_noise_std, n_total)
     keep = slice(cfg.warmup_samples, n_total)
     return LoopRecord(
         t=t[keep] - t[cfg.warmup_samples],
