@@ -128,7 +128,9 @@ def _stuck_episodes(
                 direction = float(np.sign(after))
                 starts.append(k)
                 stops.append(j)
-                travel.append(trav)
+                # the valve breaks away the first time OP is S away from where it stuck: the
+                # OP range in the episode measures S (net travel only decides the episode)
+                travel.append(float(np.ptp(op[k : j + 1])))
                 jumps.append(abs(float(mv[j + 1] - mv[j])))
                 reversal.append(last_dir != 0 and direction != last_dir)
         if j + 1 < n:

@@ -45,7 +45,7 @@ def test_stiction_measured_from_mv() -> None:
         va = classify_valve(r.op, r.mv, c.config.sample_time_s)
         if va.state == "stiction":
             assert va.S is not None and c.S is not None
-            assert va.S == pytest.approx(c.S, abs=max(1.0, 0.35 * c.S))
+            assert abs(va.S - c.S) <= max(0.3, 0.2 * c.S)
 
 
 def test_frozen_mv_is_a_data_problem() -> None:
