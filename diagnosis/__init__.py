@@ -4,7 +4,7 @@ The public entry points are :func:`diagnose` (the PCU standard chain) and
 :func:`detect_oscillation` (oscillation test on any one signal).
 """
 
-from plantcheck.diagnosis.chain import ChainParams, diagnose
+from plantcheck.diagnosis.chain import ChainParams, diagnose, diagnose_advanced
 from plantcheck.diagnosis.oscillation import (
     OscillationParams,
     OscillationResult,
@@ -22,4 +22,5 @@ __all__ = [
     "OscillationResult",
     "detect_oscillation",
     "diagnose",
+    "diagnose_advanced",
 ]

@@ -43,7 +43,8 @@ from plantcheck.diagnosis.stiction_vote import (
 )
 from plantcheck.diagnosis.test_result import StictionTestResult
 from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_index
-from plantcheck.diagnosis.window import BoolArray, WindowParams, check_window
+from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
+from plantcheck.diagnosis.window import BoolArray, WindowParams, check_window, fill_short_gaps
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,7 @@ class ChainParams:
     tuning: TuningParams = field(default_factory=TuningParams)
     split: SplitParams = field(default_factory=SplitParams)
     quantification: QuantificationParams = field(default_factory=QuantificationParams)
+    valve: ValveParams = field(default_factory=ValveParams)
 
 
 def run_stiction_tests(
@@ -122,6 +124,7 @@ def diagnose(
     loop_type: str = "other",
     params: ChainParams | None = None,
     quantify: bool = True,
+    exclude_stiction: bool = False,
 ) -> Diagnosis:
     """Run the standard chain on one window.
 
@@ -139,6 +142,9 @@ def diagnose(
     quantify:
         Estimate S and J (Hammerstein identification, ~0.4 s per hour at 1 s) when the cause
         is stiction.
+    exclude_stiction:
+        The valve is known to be healthy (advanced chain): an oscillation is split between
+        tuning and disturbance only.
     """
     if loop_type not in LOOP_TYPES:
         raise ValueError(f"loop_type must be one of {', '.join(LOOP_TYPES)}, not {loop_type!r}")
@@ -211,6 +217,13 @@ def diagnose(
         "amplitude": osc.amplitude,
         "regularity": osc.regularity,
     }
+    if exclude_stiction:
+        no_stiction = VoteResult("no_stiction", 0, 0, 0, -1.0)
+        split = split_cause(op_s, pv_s, ts, osc, {}, no_stiction, pi, loop_type, p.split)
+        diag.cause, diag.confidence = split.cause, split.confidence
+        diag.notes.append(split.reason + " (valve healthy: stiction excluded)")
+        diag.actions = [action_for(diag.cause)]
+        return diag
     tests = run_stiction_tests(e, op_s, pv_s, ts, osc, loop_type, p)
     v = vote(list(tests.values()), p.vote)
     diag.stiction["tests"] = _tests_json(tests)
@@ -276,3 +289,73 @@ def _quantify_into(
         )
     else:
         diag.notes.append("S and J not reported: " + "; ".join(q.reasons))
+
+
+WINDOW_VERDICTS = frozenset({"data_quality", "manual_mode", "insufficient_data"})
+
+
+def diagnose_advanced(
+    pv: FloatArray,
+    op: FloatArray,
+    mv: FloatArray,
+    ts: float,
+    sp: FloatArray | None = None,
+    auto: BoolArray | None = None,
+    loop_type: str = "other",
+    params: ChainParams | None = None,
+    quantify: bool = True,
+) -> Diagnosis:
+    """The advanced chain (methods.md §7.4): the valve first, from OP and the stem position MV.
+
+    A faulty actuator is the primary verdict (its class is the cause; S and J of a sticky valve
+    are measured from MV(OP)). With a healthy valve an oscillating loop is judged for tuning or
+    disturbance with stiction excluded. MV in % of travel, NaN = gap.
+    """
+    p = params or ChainParams()
+    std = diagnose(pv, op, ts, sp, auto, loop_type, p, quantify=False)
+    std.chain = "advanced"
+    if std.cause in WINDOW_VERDICTS:
+        std.notes.append("valve not assessed: the window cannot be judged")
+        return std
+    op_f, _ = fill_short_gaps(np.asarray(op, dtype=np.float64), p.window.max_fill_gap)
+    mv_arr = np.asarray(mv, dtype=np.float64)
+    if float(np.mean(~np.isfinite(mv_arr))) > p.window.max_missing_fraction:
+        std.notes.append("MV has too many gaps: valve not assessed, standard chain verdict kept")
+        return std
+    mv_f, _ = fill_short_gaps(mv_arr, p.window.max_fill_gap)
+    va = classify_valve(op_f, mv_f, ts, p.valve)
+    std.valve = {"state": va.state if va.state != "data_quality" else "unknown", "kpis": va.kpis}
+    std.notes.extend(va.reasons)
+    if va.state == "data_quality":
+        std.notes.append("MV unusable (flat while OP moves): check the position feedback")
+        return std
+    if va.state != "ok":
+        std.cause = va.state
+        std.confidence = 0.8
+        std.stiction["detected"] = va.state == "stiction"
+        if va.state in ("stiction", "deadband_backlash"):
+            std.stiction["S"] = va.S
+            std.stiction["J"] = va.J
+            std.stiction["source"] = "mv"
+            if quantify and std.oscillating:
+                a, b = 0, len(op_f)
+                osc = detect_oscillation(np.asarray(sp if sp is not None else pv) - pv, ts)
+                if osc.oscillating:
+                    q = quantify_stiction(op_f[a:b], np.asarray(pv)[a:b], ts, osc.period_s)
+                    std.stiction["op_pv_estimate"] = {
+                        "S": q.S,
+                        "J": q.J,
+                        "reliable": q.reliable,
+                    }
+        std.actions = [action_for(std.cause, std.stiction.get("S"), std.stiction.get("J"))]
+        return std
+    std.stiction["detected"] = False
+    if std.cause == "stiction":
+        healthy = diagnose(
+            pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True
+        )
+        std.cause, std.confidence = healthy.cause, healthy.confidence
+        std.notes.append("the OP/PV tests suggested stiction, but MV follows OP: valve healthy")
+        std.stiction["S"] = std.stiction["J"] = None
+        std.actions = [action_for(std.cause)]
+    return std

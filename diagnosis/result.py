@@ -64,6 +64,28 @@ _ACTIONS: dict[str, tuple[str, str]] = {
         "check_mode",
         "Put the loop back in automatic, or find out why operators run it in manual.",
     ),
+    "deadband_backlash": (
+        "check_linkage",
+        "Check the valve linkage and actuator for backlash: the stem lags OP reversals by a "
+        "deadband without slip.",
+    ),
+    "positioner_fault": (
+        "recalibrate_positioner",
+        "Recalibrate the positioner (zero and span): the stem position is offset from OP.",
+    ),
+    "positioner_tuning": (
+        "retune_positioner",
+        "Retune the positioner: the stem hunts or overshoots on its own.",
+    ),
+    "air_leakage": (
+        "check_air_supply",
+        "Check the actuator for air leakage (diaphragm, tubing, supply): the stem drifts toward "
+        "its fail position.",
+    ),
+    "actuator_undersized": (
+        "check_actuator_sizing",
+        "Check actuator size and air supply: the stem cannot move as fast as the controller asks.",
+    ),
     "insufficient_data": (
         "collect_more_data",
         "Collect a longer, steady window (constant set point, automatic mode).",
@@ -74,6 +96,8 @@ _ACTIONS: dict[str, tuple[str, str]] = {
 def action_for(cause: str, S: float | None = None, J: float | None = None) -> dict[str, str]:
     """The suggested action (code and operator text) for ``cause``."""
     code, text = _ACTIONS.get(cause, ("investigate", "Investigate the loop."))
+    if cause == "deadband_backlash" and S is not None:
+        text = f"{text[:-1]} (deadband {S:.1f} % of travel)."
     if cause == "stiction" and S is not None:
         jtxt = f" (J = {J:.1f} %)" if J is not None else ""
         text = f"Schedule valve maintenance: estimated stiction S = {S:.1f} %{jtxt}."

@@ -62,6 +62,8 @@ class ValveParams:
     """... and the drift explains at least this share of the e_v variance."""
     hunting_amplitude: float = 0.3
     """MV-only oscillation amplitude (% of travel) above which the positioner hunts."""
+    hunting_ratio: float = 0.5
+    """... and at least this share of OP's own oscillation amplitude (MV is the source)."""
     rate_share: float = 0.02
     """Share of samples at the MV speed limit (with a large e_v) -> undersized actuator."""
     rate_error: float = 1.0
@@ -70,7 +72,7 @@ class ValveParams:
     """OP and MV are smoothed over this many seconds before the gain/drift regression."""
     speed_window_s: float = 2.0
     """MV speed is measured over this many seconds (rate-limit KPI)."""
-    speed_saturation: float = 1.5
+    speed_saturation: float = 3.0
     """Undersized when |speed| varies this many times less than |speed|/|e_v| (rate limit,
     not a lag) [R]."""
     calibration_scatter: float = 0.5
@@ -206,7 +208,13 @@ def valve_kpis(
     lag_fit = float((ev - ev.mean()) @ dop) / den_l if den_l > 0 else 0.0
     e_res = ev - ev.mean() - lag_fit * dop
     ev_osc = detect_oscillation(e_res, ts)
-    kpis["mv_only_oscillation"] = float(ev_osc.amplitude or 0.0) if ev_osc.oscillating else 0.0
+    mv_only = float(ev_osc.amplitude or 0.0) if ev_osc.oscillating else 0.0
+    kpis["mv_only_oscillation"] = mv_only
+    # a hunting positioner is the source of the cycle: its residual is large next to OP's own
+    # oscillation; a healthy positioner in an oscillating loop leaves a small lag residual
+    op_osc = detect_oscillation(op_s, ts)
+    op_amp = float(op_osc.amplitude or 0.0) if op_osc.oscillating else 0.0
+    kpis["mv_only_ratio"] = mv_only / op_amp if op_amp > 0 else None
     # rate limit: MV speed (over ~2 s, above the sensor noise) pinned at its maximum while
     # the error is large and MV moves toward OP
     wr = max(2, round(p.speed_window_s / ts))
@@ -259,7 +267,7 @@ def classify_valve(
         return ValveAssessment("air_leakage", kpis, None, None, reasons)
     gain_bad = gain is not None and abs(float(gain) - 1.0) > p.gain_limit
     steady = float(kpis["residual_std"] or 0.0) < p.calibration_scatter
-    if (abs(bias) > p.bias_limit or gain_bad) and steady:
+    if (abs(bias) > p.bias_limit or gain_bad) and steady and not friction:
         reasons.append(
             f"positioner calibration: bias {bias:+.2f} %"
             + (f", gain {float(gain):.3f}" if gain is not None else "")
@@ -271,7 +279,8 @@ def classify_valve(
             return ValveAssessment("stiction", kpis, s_v, j_v, reasons)
         reasons.append(f"deadband without slip: S_v = {s_v:.2f} %, J_v = {j_v or 0:.2f} %")
         return ValveAssessment("deadband_backlash", kpis, s_v, j_v, reasons)
-    if hunting > p.hunting_amplitude:
+    ratio = kpis["mv_only_ratio"]
+    if hunting > p.hunting_amplitude and (ratio is None or float(ratio) > p.hunting_ratio):
         reasons.append(f"MV oscillates on its own (amplitude {hunting:.2f} %)")
         return ValveAssessment("positioner_tuning", kpis, None, None, reasons)
     return ValveAssessment("ok", kpis, None, None, reasons)

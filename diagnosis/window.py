@@ -72,7 +72,7 @@ class WindowReport:
     quantised: bool = False
 
 
-def _fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
+def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
     """Fill NaN runs: runs of <= ``max_gap`` forward-filled, longer ones linearly interpolated.
 
     Returns the filled array and the length of the longest gap.
@@ -170,8 +170,8 @@ def check_window(
             f"(limit {100 * p.max_missing_fraction:.0f} %)"
         )
         return WindowReport("data_quality", notes, pv, op, sp_arr, (0, n), indices)
-    pv_f, gap_pv = _fill_short_gaps(np.asarray(pv, dtype=np.float64), p.max_fill_gap)
-    op_f, gap_op = _fill_short_gaps(np.asarray(op, dtype=np.float64), p.max_fill_gap)
+    pv_f, gap_pv = fill_short_gaps(np.asarray(pv, dtype=np.float64), p.max_fill_gap)
+    op_f, gap_op = fill_short_gaps(np.asarray(op, dtype=np.float64), p.max_fill_gap)
     if miss_frac > 0:
         notes.append(
             f"{int(missing.sum())} missing samples filled (longest gap {max(gap_pv, gap_op)})"
@@ -181,7 +181,7 @@ def check_window(
             notes.append("no SP column: set point assumed constant (mean of PV)")
         sp_f = np.full(n, float(np.mean(pv_f)))
     else:
-        sp_f, _ = _fill_short_gaps(sp_arr, p.max_fill_gap)
+        sp_f, _ = fill_short_gaps(sp_arr, p.max_fill_gap)
 
     # frozen sensor and quantisation (methods §1.3)
     pv_range = float(np.ptp(pv_f))

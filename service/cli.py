@@ -17,7 +17,7 @@ import numpy as np
 import typer
 
 from plantcheck import __version__
-from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose
+from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagnose_advanced
 from plantcheck.diagnosis.result import json_safe
 from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
 
@@ -109,6 +109,8 @@ def _summary(d: Diagnosis) -> str:
         lines.append(
             f"stiction:    {'detected' if d.stiction['detected'] else 'not detected'} ({shown})"
         )
+    if d.valve is not None:
+        lines.append(f"valve:       {d.valve['state']} (advanced chain, from MV)")
     for a in d.actions:
         lines.append(f"action:      {a['text']}")
     for note in d.notes:
@@ -143,12 +145,14 @@ def diagnose_cmd(
     op = rec.signals["op"][sl]
     sp = rec.signals["sp"][sl] if "sp" in rec.signals else None
     auto = rec.auto[sl] if rec.auto is not None else None
-    d = diagnose(pv, op, rec.sample_time_s, sp=sp, auto=auto, loop_type=loop_type.value)
-    d.notes = rec.notes + extra + d.notes
     if "mv" in rec.signals:
-        d.notes.append(
-            "mv column present: the advanced chain is not available yet; standard chain used"
+        mv = rec.signals["mv"][sl]
+        d = diagnose_advanced(
+            pv, op, mv, rec.sample_time_s, sp=sp, auto=auto, loop_type=loop_type.value
         )
+    else:
+        d = diagnose(pv, op, rec.sample_time_s, sp=sp, auto=auto, loop_type=loop_type.value)
+    d.notes = rec.notes + extra + d.notes
     _emit(d.to_dict() if as_json else _summary(d), as_json)
 
 
