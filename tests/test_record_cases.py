@@ -33,5 +33,11 @@ def test_record_case(case: Path, run_cli: RunCli) -> None:
     assert out["schema"] == "plantcheck.diagnosis/1"
     if "cause" in expected:
         assert out["cause"] == expected["cause"], out["notes"]
+    if "chain" in expected:
+        assert out["chain"] == expected["chain"]
+        assert out["valve"]["state"] == expected["valve_state"]
+        assert "bias" in out["valve"]["kpis"]
+    else:
+        assert out["chain"] == "standard" and out["valve"] is None
     if "note" in expected:
         assert any(expected["note"].lower() in n.lower() for n in out["notes"]), out["notes"]
