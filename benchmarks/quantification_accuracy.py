@@ -22,7 +22,7 @@ import numpy as np
 
 from plantcheck.diagnosis.oscillation import detect_oscillation
 from plantcheck.diagnosis.quantification import quantify_stiction
-from plantcheck.simulator.cases import PROCESSES, simc_pi, ultimate_gain
+from plantcheck.simulator.cases import PROCESSES, process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
 
 FAMILY_PROCESSES = ("flow", "pressure", "temperature", "level")
@@ -31,11 +31,8 @@ FAMILY_PROCESSES = ("flow", "pressure", "temperature", "level")
 def make_case(
     rng: np.random.Generator, pname: str, valve: str, external: bool, S: float, J: float
 ) -> LoopConfig:
-    _, proc = PROCESSES[pname]
-    slow = proc.tau_s + proc.theta_s if proc.kind == "fopdt" else 20.0
-    ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))
-    pi = simc_pi(proc)
-    _, tu = ultimate_gain(proc, pi.Ti_s, ts)
+    su = process_setup(pname)
+    proc, ts, pi, tu = su.process, su.ts, su.pi, su.tu
     dist: tuple[Disturbance, ...] = (Disturbance(random_walk_std=0.01 * S),)
     if external:
         period = float(rng.uniform(3, 8)) * tu * 5
@@ -136,20 +133,19 @@ def main() -> None:
     # healthy loops: any reliable S is a false alarm
     false_rel = n_healthy = 0
     for pname in FAMILY_PROCESSES:
-        loop_type, proc = PROCESSES[pname]
+        su = process_setup(pname)
         for kind in ("linear", "aggressive", "external"):
             for _ in range(max(2, args.per_family // 3)):
                 cfg = make_case(rng, pname, "linear", kind == "external", 2.0, 0.0)
                 if kind == "aggressive":
-                    ku, _ = ultimate_gain(proc, cfg.controller.Ti_s, cfg.sample_time_s)
                     cfg = replace(
                         cfg,
-                        controller=replace(cfg.controller, Kc=0.9 * ku),
+                        controller=replace(cfg.controller, Kc=0.9 * su.ku),
                         disturbances=(
                             Disturbance(filtered_noise_std=1.0, filtered_noise_tau_s=5.0),
                         ),
                     )
-                s_hat, _, ok, _ = estimate(cfg, loop_type)
+                s_hat, _, ok, _ = estimate(cfg, su.loop_type)
                 n_healthy += 1
                 false_rel += ok
     print(f"healthy valves: {false_rel} of {n_healthy} got a reliable S (should be 0)")

@@ -23,7 +23,11 @@ from plantcheck.diagnosis.oscillation import (
     OscillationResult,
     detect_oscillation,
 )
-from plantcheck.diagnosis.quantification import QuantificationParams, quantify_stiction
+from plantcheck.diagnosis.quantification import (
+    QuantificationParams,
+    QuantificationResult,
+    quantify_stiction,
+)
 from plantcheck.diagnosis.result import Diagnosis, action_for
 from plantcheck.diagnosis.shape_tests import (
     ShapeParams,
@@ -241,7 +245,7 @@ def diagnose(
         diag.confidence = _confidence_from_vote(v, True)
         diag.notes.append(f"stiction: {v.n_stiction} of {v.n_tests} tests agree")
         if quantify:
-            _quantify_into(diag, op_s, pv_s, ts, osc, loop_type, p)
+            _quantify_into(diag, op_s, pv_s, ts, osc, p)
     else:
         split = split_cause(op_s, pv_s, ts, osc, tests, v, pi, loop_type, p.split)
         diag.cause = split.cause
@@ -251,25 +255,38 @@ def diagnose(
     return diag
 
 
+def _quantify_recent(
+    diag: Diagnosis,
+    op: FloatArray,
+    pv: FloatArray,
+    ts: float,
+    period_s: float | None,
+    p: ChainParams,
+) -> QuantificationResult:
+    """Hammerstein S/J estimate (methods §6.1) on the most recent part of the window.
+
+    Friction is constant within a window and a few tens of cycles identify it: the last
+    max(3,600 samples, 40 periods) are used, so that day-long windows stay fast.
+    """
+    period_samples = (period_s or 0.0) / ts
+    keep = int(max(p.quantification.min_window, p.quantification.window_periods * period_samples))
+    if op.size > keep:
+        op, pv = op[-keep:], pv[-keep:]
+        diag.notes.append(f"S and J estimated on the last {keep} samples of the window")
+    return quantify_stiction(op, pv, ts, period_s, p.quantification)
+
+
 def _quantify_into(
     diag: Diagnosis,
     op: FloatArray,
     pv: FloatArray,
     ts: float,
     osc: OscillationResult,
-    loop_type: str,
     p: ChainParams,
 ) -> None:
     """Fill stiction.S/J (% of valve travel) when the Hammerstein estimate is reliable
     (methods §6.1), else leave them null and say why; add the apparent stiction (§6.2)."""
-    # Friction is constant within a window and a few tens of cycles identify it: quantify the
-    # most recent max(3,600 samples, 40 periods) so that day-long windows stay fast.
-    period_samples = (osc.period_s or 0.0) / ts
-    keep = int(max(p.quantification.min_window, p.quantification.window_periods * period_samples))
-    if op.size > keep:
-        op, pv = op[-keep:], pv[-keep:]
-        diag.notes.append(f"S and J estimated on the last {keep} samples of the window")
-    q = quantify_stiction(op, pv, ts, osc.period_s, p.quantification)
+    q = _quantify_recent(diag, op, pv, ts, osc.period_s, p)
     diag.stiction["S"] = q.S
     diag.stiction["J"] = q.J
     diag.stiction["quantification"] = {
@@ -337,16 +354,11 @@ def diagnose_advanced(
             std.stiction["S"] = va.S
             std.stiction["J"] = va.J
             std.stiction["source"] = "mv"
-            if quantify and std.oscillating:
-                a, b = 0, len(op_f)
-                osc = detect_oscillation(np.asarray(sp if sp is not None else pv) - pv, ts)
-                if osc.oscillating:
-                    q = quantify_stiction(op_f[a:b], np.asarray(pv)[a:b], ts, osc.period_s)
-                    std.stiction["op_pv_estimate"] = {
-                        "S": q.S,
-                        "J": q.J,
-                        "reliable": q.reliable,
-                    }
+            if quantify and std.oscillation is not None:
+                # the OP/PV-only estimate beside the measured one (methods §7.4 step 4)
+                pv_f, _ = fill_short_gaps(np.asarray(pv, dtype=np.float64), p.window.max_fill_gap)
+                q = _quantify_recent(std, op_f, pv_f, ts, std.oscillation["period_s"], p)
+                std.stiction["op_pv_estimate"] = {"S": q.S, "J": q.J, "reliable": q.reliable}
         std.actions = [action_for(std.cause, std.stiction.get("S"), std.stiction.get("J"))]
         return std
     std.stiction["detected"] = False

@@ -65,8 +65,6 @@ def _root(
 
 
 def _load(file: Path, sample_time: float | None, need: tuple[str, ...]) -> LoopRecordFile:
-    if sample_time is not None and not sample_time > 0:
-        raise _fail(f"--sample-time must be a positive number of seconds, not {sample_time:g}")
     try:
         rec = read_record(file, sample_time)
         require(rec, file, need)

@@ -71,6 +71,28 @@ def ultimate_gain(p: Process, ti: float, ts: float) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
+class ProcessSetup:
+    """A named process with its sample time (s), SIMC PI tuning, ultimate gain and period (s)."""
+
+    loop_type: str
+    process: Process
+    ts: float
+    pi: PIController
+    ku: float
+    tu: float
+
+
+def process_setup(pname: str) -> ProcessSetup:
+    """Sample time from the process' slowest time scale (0.2 s … 10 s), SIMC tuning, Ku, Tu."""
+    loop_type, proc = PROCESSES[pname]
+    slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
+    ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))  # 0.2 s (flow) … 9.5 s (analyser)
+    pi = simc_pi(proc)
+    ku, tu = ultimate_gain(proc, pi.Ti_s, ts)
+    return ProcessSetup(loop_type, proc, ts, pi, ku, tu)
+
+
+@dataclass(frozen=True)
 class Case:
     """A labelled simulated loop."""
 
@@ -98,11 +120,9 @@ def generate_cases(
     """
     rng = np.random.default_rng(seed)
     noise_levels = (0.05, 0.2, 0.5)
-    for pname, (loop_type, proc) in PROCESSES.items():
-        slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
-        ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))  # 0.2 s (flow) … 9.5 s (analyser)
-        base_pi = simc_pi(proc)
-        ku, tu = ultimate_gain(proc, base_pi.Ti_s, ts)
+    for pname in PROCESSES:
+        su = process_setup(pname)
+        loop_type, proc, ts, base_pi, ku, tu = su.loop_type, su.process, su.ts, su.pi, su.ku, su.tu
         for n in lengths:
             dur = n * ts
             for noise in noise_levels:
@@ -249,11 +269,8 @@ def generate_actuator_cases(seed: int = 1, per_cell: int = 2) -> Iterator[Actuat
     loops (aggressive tuning, external disturbance), over loop types, noise levels and sizes."""
     rng = np.random.default_rng(seed)
     for pname in ACTUATOR_PROCESSES:
-        loop_type, proc = PROCESSES[pname]
-        slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
-        ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))
-        base_pi = simc_pi(proc)
-        ku, tu = ultimate_gain(proc, base_pi.Ti_s, ts)
+        su = process_setup(pname)
+        loop_type, proc, ts, base_pi, ku, tu = su.loop_type, su.process, su.ts, su.pi, su.ku, su.tu
         n = 3600
         dur = n * ts
         for rep in range(per_cell):
