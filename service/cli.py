@@ -19,6 +19,8 @@ import typer
 from plantcheck import __version__
 from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagnose_advanced
 from plantcheck.diagnosis.result import json_safe
+from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
 
 DEFAULT_MAX_SAMPLES = 200_000
@@ -43,11 +45,6 @@ class LoopType(StrEnum):
     other = "other"
 
 
-def _fail(message: str, code: int = 2) -> typer.Exit:
-    typer.echo(f"plantcheck: error: {message}", err=True)
-    return typer.Exit(code)
-
-
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"plantcheck {__version__}")
@@ -69,7 +66,7 @@ def _load(file: Path, sample_time: float | None, need: tuple[str, ...]) -> LoopR
         rec = read_record(file, sample_time)
         require(rec, file, need)
     except RecordError as exc:
-        raise _fail(str(exc)) from None
+        raise fail(str(exc)) from None
     return rec
 
 
@@ -173,7 +170,7 @@ def oscillation_cmd(
     """Test one signal for a sustained oscillation (Hägglund + Thornhill)."""
     name = column.strip().lower()
     if name not in ("sp", "pv", "op", "mv"):
-        raise _fail(f"--column must be one of sp, pv, op, mv, not {column!r}")
+        raise fail(f"--column must be one of sp, pv, op, mv, not {column!r}")
     rec = _load(file, sample_time, (name,))
     sl, _ = _tail(rec, max_samples)
     x = rec.signals[name][sl]
@@ -214,6 +211,9 @@ def oscillation_cmd(
         if out["regularity"] is not None:
             text += f", regularity {out['regularity']:.2f}"
         _emit(text + "".join(f"\nnote: {n}" for n in notes), False)
+
+
+app.command("simulate")(simulate_cmd)
 
 
 def _emit(payload: Any, as_json: bool) -> None:

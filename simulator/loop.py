@@ -138,6 +138,82 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
     return out
 
 
+class ClosedLoop:
+    """One closed loop advanced a sample at a time: PI controller → actuator/valve → process.
+
+    The process is discretised exactly under a zero-order hold (first or second order lag plus
+    dead time, or integrator plus dead time); the PI controller is positional with clamping
+    anti-windup. States are deviations around the initial valve position ``u0`` (% of travel)
+    and the initial set point ``sp`` (% of span). ``simulate_loop`` and the live simulator
+    (``plant.py``) both step this class, so batch records and served signals are the same model.
+    """
+
+    def __init__(self, cfg: LoopConfig) -> None:
+        self.cfg = cfg
+        ts = cfg.sample_time_s
+        p = cfg.process
+        valve: Valve = make_valve(cfg)
+        if cfg.actuator is not None:
+            valve = cfg.actuator.build(valve, ts)
+        self.valve = valve
+        self.delay = max(0, round(p.theta_s / ts))
+        self.queue: deque[float] = (
+            deque([cfg.u0] * self.delay, maxlen=self.delay) if self.delay else deque()
+        )
+        self.a1 = math.exp(-ts / p.tau_s) if p.kind == "fopdt" else 1.0
+        self.a2 = math.exp(-ts / p.tau2_s) if p.tau2_s > 0 else 0.0
+        self.x1 = 0.0
+        self.x2 = 0.0
+        self.integral = cfg.u0  # integral part of the positional PI, starts at the bias
+        self.auto = True
+
+    def output(self, out_d: float = 0.0) -> float:
+        """The true process value (% of span) before measurement noise."""
+        p = self.cfg.process
+        return self.cfg.sp + (self.x2 if p.tau2_s > 0 else self.x1) + out_d
+
+    def step(
+        self, sp: float, load: float = 0.0, out_d: float = 0.0, noise: float = 0.0
+    ) -> tuple[float, float, float]:
+        """Advance one sample; return the measured PV, the controller output OP and the stem
+        position MV (PV in % of span, OP and MV in % of travel).
+
+        ``load`` enters at the process input (% of travel), ``out_d`` at the output (% of span),
+        ``noise`` is the measurement noise on PV. In manual (``auto`` False) OP holds.
+        """
+        cfg = self.cfg
+        p = cfg.process
+        c = cfg.controller
+        ts = cfg.sample_time_s
+        pv_meas = self.output(out_d) + noise
+        e = sp - pv_meas
+        if self.auto:
+            u_unsat = self.integral + c.Kc * e
+            u = min(max(u_unsat, c.op_min), c.op_max)
+            # clamping anti-windup: integrate only when not pushing further into a limit
+            if (
+                u == u_unsat
+                or (u_unsat > c.op_max and e * c.Kc < 0)
+                or (u_unsat < c.op_min and e * c.Kc > 0)
+            ):
+                self.integral += c.Kc * ts / c.Ti_s * e
+        else:  # manual: OP frozen at its last value; bumpless return to auto
+            u = min(max(self.integral, c.op_min), c.op_max)
+        m = self.valve.step(u)
+        if self.delay:
+            u_del = self.queue[0] - cfg.u0 + load
+            self.queue.append(m)
+        else:
+            u_del = m - cfg.u0 + load
+        if p.kind == "fopdt":
+            self.x1 = self.a1 * self.x1 + p.K * (1 - self.a1) * u_del
+            if p.tau2_s > 0:
+                self.x2 = self.a2 * self.x2 + (1 - self.a2) * self.x1
+        else:
+            self.x1 = self.x1 + p.K * ts * u_del
+        return pv_meas, u, m
+
+
 def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     """Simulate one closed loop and return the last ``n_samples`` samples after warm-up."""
     rng = np.random.default_rng(cfg.seed)
@@ -157,49 +233,12 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     for t_step, value in cfg.sp_steps:
         sp[t >= t_step + cfg.warmup_samples * ts] = value
 
-    p = cfg.process
-    c = cfg.controller
-    valve: Valve = make_valve(cfg)
-    if cfg.actuator is not None:
-        valve = cfg.actuator.build(valve, ts)
-    delay = max(0, round(p.theta_s / ts))
-    queue: deque[float] = deque([cfg.u0] * delay, maxlen=delay) if delay else deque()
-    a1 = math.exp(-ts / p.tau_s) if p.kind == "fopdt" else 1.0
-    a2 = math.exp(-ts / p.tau2_s) if p.tau2_s > 0 else 0.0
-    x1 = 0.0  # deviation states around the initial valve position u0
-    x2 = 0.0
-    y0 = cfg.sp
-    integral = cfg.u0  # integral part of the positional PI, starts at the bias
+    loop = ClosedLoop(cfg)
     pv = np.empty(n_total)
     op = np.empty(n_total)
     mv = np.empty(n_total)
     for k in range(n_total):
-        y = y0 + (x2 if p.tau2_s > 0 else x1) + out_d[k]
-        pv_meas = y + noise[k]
-        e = sp[k] - pv_meas
-        u_unsat = integral + c.Kc * e
-        u = min(max(u_unsat, c.op_min), c.op_max)
-        # clamping anti-windup: integrate only when not pushing further into a limit
-        if (
-            u == u_unsat
-            or (u_unsat > c.op_max and e * c.Kc < 0)
-            or (u_unsat < c.op_min and e * c.Kc > 0)
-        ):
-            integral += c.Kc * ts / c.Ti_s * e
-        m = valve.step(u)
-        pv[k], op[k], mv[k] = pv_meas, u, m
-        u_in = m - cfg.u0 + load[k]
-        if delay:
-            u_del = queue[0] - cfg.u0 + load[k]
-            queue.append(m)
-        else:
-            u_del = u_in
-        if p.kind == "fopdt":
-            x1 = a1 * x1 + p.K * (1 - a1) * u_del
-            if p.tau2_s > 0:
-                x2 = a2 * x2 + (1 - a2) * x1
-        else:
-            x1 = x1 + p.K * ts * u_del
+        pv[k], op[k], mv[k] = loop.step(sp[k], load[k], out_d[k], noise[k])
     if cfg.mv_noise_std:
         mv = mv + rng.normal(0.0, cfg.mv_noise_std, n_total)
     keep = slice(cfg.warmup_samples, n_total)

@@ -1,0 +1,145 @@
+"""``plantcheck simulate``: the bundled plant simulator (servers, or records to CSV)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from plantcheck.service.cli_common import fail, parse_duration, parse_host_port
+from plantcheck.service.toml_config import ConfigError
+from plantcheck.simulator.scenario import Scenario, load_scenario
+
+
+def _apply_overrides(
+    sc: Scenario, modbus: str | None, opcua: str | None, admin: str | None, speed: float | None
+) -> Scenario:
+    upd: dict[str, object] = {}
+    try:
+        if modbus is not None:
+            if modbus == "off":
+                upd["modbus"] = sc.modbus.model_copy(update={"enabled": False})
+            else:
+                host, port = parse_host_port(modbus)
+                upd["modbus"] = sc.modbus.model_copy(update={"host": host, "port": port})
+        if admin is not None:
+            if admin == "off":
+                upd["admin"] = sc.admin.model_copy(update={"enabled": False})
+            else:
+                host, port = parse_host_port(admin)
+                upd["admin"] = sc.admin.model_copy(update={"host": host, "port": port})
+    except ValueError as exc:
+        raise fail(f"--modbus/--admin: {exc}") from None
+    if opcua is not None:
+        if opcua == "off":
+            upd["opcua"] = sc.opcua.model_copy(update={"enabled": False})
+        elif not opcua.startswith("opc.tcp://"):
+            raise fail(f"--opcua: {opcua!r} is not an opc.tcp:// URL (or 'off')")
+        else:
+            upd["opcua"] = sc.opcua.model_copy(update={"url": opcua})
+    if speed is not None:
+        if not 0 < speed <= 100_000:
+            raise fail("--speed must be > 0 and <= 100000 (simulated seconds per second)")
+        upd["clock"] = sc.clock.model_copy(update={"speed": speed})
+    return sc.model_copy(update=upd)
+
+
+def simulate_cmd(
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="Scenario TOML (default: the bundled 8-loop plant)."),
+    ] = None,
+    modbus: Annotated[
+        str | None, typer.Option(help="Modbus TCP HOST:PORT, or 'off' (default 127.0.0.1:5020).")
+    ] = None,
+    opcua: Annotated[
+        str | None,
+        typer.Option(help="OPC UA endpoint URL, or 'off' (default opc.tcp://127.0.0.1:4840/...)."),
+    ] = None,
+    admin: Annotated[
+        str | None, typer.Option(help="Admin interface HOST:PORT, or 'off' (default :5021).")
+    ] = None,
+    speed: Annotated[
+        float | None,
+        typer.Option(help="Simulated seconds per wall second (1 = real time, 100 = 100x)."),
+    ] = None,
+    to_csv: Annotated[
+        Path | None,
+        typer.Option("--to-csv", help="Write each loop's record (contracts §1) here and exit."),
+    ] = None,
+    duration: Annotated[
+        str, typer.Option(help="With --to-csv: simulated duration, e.g. 7200, 90m, 2h, 1d.")
+    ] = "2h",
+    export_map: Annotated[
+        Path | None,
+        typer.Option(help="Write the Modbus register map to this .csv or .toml file and exit."),
+    ] = None,
+    quiet: Annotated[bool, typer.Option(help="Do not print the register map at start.")] = False,
+) -> None:
+    """Run the simulated plant: Modbus TCP and OPC UA servers on loopback, faults on demand.
+
+    With --to-csv, simulate --duration at full speed and write one CSV record per loop plus a
+    JSON file with its true cause and S, J instead of serving.
+    """
+    from plantcheck.simulator.export import map_csv, map_toml, write_records
+
+    try:
+        scenario = load_scenario(config)
+    except ConfigError as exc:
+        raise fail(f"invalid scenario: {exc}") from None
+    scenario = _apply_overrides(scenario, modbus, opcua, admin, speed)
+    if export_map is not None:
+        if export_map.suffix not in (".csv", ".toml"):
+            raise fail("--export-map: the file name must end in .csv or .toml")
+        text = map_csv(scenario) if export_map.suffix == ".csv" else map_toml(scenario)
+        export_map.write_text(text, encoding="utf-8")
+        typer.echo(f"register map of {len(scenario.loop)} loops written to {export_map}")
+        return
+    if to_csv is not None:
+        try:
+            seconds = parse_duration(duration)
+        except ValueError as exc:
+            raise fail(f"--duration: {exc}") from None
+        start = scenario.clock.start or datetime.now(UTC).replace(microsecond=0)
+
+        def progress(frac: float) -> None:
+            typer.echo(f"simulated {100 * frac:.0f} %", err=True)
+
+        files = write_records(scenario, to_csv, seconds, start, progress)
+        typer.echo(f"wrote {len(files)} loop records of {seconds:g} s to {to_csv}")
+        return
+    if not quiet:
+        typer.echo(map_csv(scenario), nl=False)
+    _serve(scenario)
+
+
+def _serve(scenario: Scenario) -> None:
+    from plantcheck.simulator.runner import PlantRunner
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
+
+    async def main() -> None:
+        runner = PlantRunner(scenario)
+        task = asyncio.create_task(runner.run())
+        await runner.ready.wait()
+        m, o, a = scenario.modbus, scenario.opcua, scenario.admin
+        parts = [f"{len(scenario.loop)} loops at {scenario.clock.speed:g}x real time"]
+        if m.enabled:
+            parts.append(f"Modbus TCP {m.host}:{m.port} (device {m.device_id})")
+        if o.enabled:
+            parts.append(f"OPC UA {o.url}")
+        if a.enabled:
+            parts.append(f"admin {a.host}:{a.port}")
+        typer.echo("plantcheck simulator: " + "; ".join(parts), err=True)
+        await task
+
+    try:
+        asyncio.run(main())
+    except OSError as exc:
+        raise fail(
+            f"cannot serve ({exc}); choose free ports with --modbus/--opcua/--admin"
+        ) from None

@@ -1,0 +1,129 @@
+"""OPC UA server of the simulated plant (asyncua 2.1).
+
+Address space: one object per loop under ``Objects`` with node id ``ns=<idx>;s=<loop id>`` and
+browse name ``<idx>:<loop id>``; its variables ``SP``, ``PV``, ``OP``, ``Mode`` (and ``MV`` when
+the loop exposes its stem position) have node ids ``ns=<idx>;s=<loop id>.<signal>``, type
+Double, read-only, and the properties ``EngineeringUnits`` (EUInformation) and ``EURange``.
+``<idx>`` is the index of the namespace ``urn:plantcheck:simulator`` (2 on a fresh server).
+Every value carries the *simulated* sample time as its source timestamp and a status code
+(Good, or Bad during a ``bad`` fault). Security: none (loopback use by default).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from datetime import UTC, datetime
+
+from asyncua import Server, ua
+
+from plantcheck.simulator.faults import FaultState
+from plantcheck.simulator.plant import Plant
+from plantcheck.simulator.scenario import SIGNALS, OpcUaSpec, Scenario
+
+BAD = ua.StatusCode(ua.StatusCodes.BadSensorFailure)
+GOOD = ua.StatusCode(ua.StatusCodes.Good)
+_UNECE_CODES = {"%": 20529, "m3/h": 5125448, "t/h": 4534354, "bar": 4342098, "degC": 4408652}
+
+
+def node_id(namespace_index: int, loop_id: str, signal: str | None = None) -> ua.NodeId:
+    """Node id of a loop object (``signal`` None) or of one of its variables."""
+    ident = loop_id if signal is None else f"{loop_id}.{signal}"
+    return ua.NodeId(ident, namespace_index)
+
+
+def _eu(unit: str) -> ua.EUInformation:
+    return ua.EUInformation(
+        NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact",
+        UnitId=_UNECE_CODES.get(unit, -1),
+        DisplayName=ua.LocalizedText(unit),
+        Description=ua.LocalizedText(unit),
+    )
+
+
+class OpcUaPlantServer:
+    """Serves a ``Plant`` over OPC UA; ``publish`` writes the latest sample of every loop."""
+
+    def __init__(self, spec: OpcUaSpec, scenario: Scenario, faults: FaultState) -> None:
+        self.spec = spec
+        self.scenario = scenario
+        self.faults = faults
+        self.server: Server | None = None
+        self.namespace_index = 0
+        self._nodes: list[list[ua.NodeId | None]] = []
+
+    async def start(self) -> None:
+        logging.getLogger("asyncua").setLevel(logging.WARNING)
+        server = Server()
+        await server.init()
+        server.set_endpoint(self.spec.url)
+        server.set_server_name("plantcheck simulator")
+        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        idx = await server.register_namespace(self.spec.namespace)
+        self.namespace_index = idx
+        objects = server.nodes.objects
+        self._nodes = []
+        for spec in self.scenario.loop:
+            obj = await objects.add_object(node_id(idx, spec.id), f"{idx}:{spec.id}")
+            row: list[ua.NodeId | None] = []
+            for sig in SIGNALS:
+                if sig == "MV" and not spec.expose_mv:
+                    row.append(None)
+                    continue
+                var = await obj.add_variable(
+                    node_id(idx, spec.id, sig), f"{idx}:{sig}", 0.0, ua.VariantType.Double
+                )
+                unit = spec.unit if sig in ("SP", "PV") else ("%" if sig != "Mode" else "")
+                if unit:
+                    lo, hi = spec.range if sig in ("SP", "PV") else (0.0, 100.0)
+                    await var.add_property(idx, "EngineeringUnits", _eu(unit))
+                    await var.add_property(idx, "EURange", ua.Range(Low=lo, High=hi))
+                row.append(var.nodeid)
+            self._nodes.append(row)
+        await server.start()
+        self.server = server
+
+    async def stop(self) -> None:
+        if self.server is not None:
+            await self.server.stop()
+            self.server = None
+
+    def _transports(self) -> list[object]:
+        if self.server is None:
+            return []
+        return list(self.server.iserver.asyncio_transports)
+
+    def drop_connections(self) -> None:
+        """Close every client connection (clients see the connection reset)."""
+        for t in self._transports():
+            t.close()  # type: ignore[attr-defined]
+
+    def set_stalled(self, stalled: bool) -> None:
+        """Stop (or resume) reading from every open connection: requests go unanswered."""
+        for t in self._transports():
+            (t.pause_reading if stalled else t.resume_reading)()  # type: ignore[attr-defined]
+
+    async def publish(self, plant: Plant) -> None:
+        """Write every loop's latest sample with its simulated source timestamp."""
+        if self.server is None:
+            return
+        stamp = plant.time
+        now = datetime.now(UTC)
+        for i, spec in enumerate(self.scenario.loop):
+            for j, sig in enumerate(SIGNALS):
+                nid = self._nodes[i][j]
+                if nid is None:
+                    continue
+                value = float(plant.values[i, j])
+                status = GOOD
+                if self.faults.masked("bad", "opcua", spec.id, sig):
+                    status = BAD
+                elif self.faults.masked("nan", "opcua", spec.id, sig):
+                    value = math.nan
+                dv = ua.DataValue(
+                    Value=ua.Variant(value, ua.VariantType.Double),
+                    StatusCode=status,
+                    SourceTimestamp=stamp,
+                    ServerTimestamp=now,
+                )
+                await self.server.write_attribute_value(nid, dv)

@@ -1,0 +1,64 @@
+"""Run the simulator's real servers inside a test: free loopback ports, a running plant."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+from collections.abc import Awaitable, Callable
+from datetime import UTC, datetime
+from typing import TypeVar
+
+from plantcheck.simulator.runner import PlantRunner
+from plantcheck.simulator.scenario import Scenario, load_scenario
+
+T = TypeVar("T")
+START = datetime(2026, 1, 1, tzinfo=UTC)
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def scenario_on_free_ports(
+    scenario: Scenario | None = None,
+    *,
+    speed: float = 1.0,
+    sample_time_s: float = 1.0,
+    **modbus: object,
+) -> Scenario:
+    """The scenario (default: the bundled one) with every server on a free loopback port."""
+    sc = scenario or load_scenario()
+    return sc.model_copy(
+        update={
+            "clock": sc.clock.model_copy(update={"speed": speed, "sample_time_s": sample_time_s}),
+            "modbus": sc.modbus.model_copy(
+                update={"host": "127.0.0.1", "port": free_port(), **modbus}
+            ),
+            "opcua": sc.opcua.model_copy(
+                update={"url": f"opc.tcp://127.0.0.1:{free_port()}/plantcheck/"}
+            ),
+            "admin": sc.admin.model_copy(update={"host": "127.0.0.1", "port": free_port()}),
+        }
+    )
+
+
+async def with_plant(scenario: Scenario, body: Callable[[PlantRunner], Awaitable[T]]) -> T:
+    """Start the plant and its servers, run ``body(runner)``, stop everything."""
+    runner = PlantRunner(scenario, start=START)
+    task = asyncio.create_task(runner.run())
+    ready = asyncio.create_task(runner.ready.wait())
+    done, _ = await asyncio.wait({task, ready}, timeout=30, return_when=asyncio.FIRST_COMPLETED)
+    if task in done:
+        task.result()  # raises the start-up error
+    try:
+        return await body(runner)
+    finally:
+        runner.stop()
+        await asyncio.wait_for(task, 30)
+
+
+def run_with_plant(scenario: Scenario, body: Callable[[PlantRunner], Awaitable[T]]) -> T:
+    return asyncio.run(with_plant(scenario, body))

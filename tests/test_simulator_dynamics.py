@@ -1,0 +1,107 @@
+"""Simulator dynamics against theory: exact step responses, a sticky valve's limit cycle, the
+oscillation period at the ultimate gain; and the on-line plant against the batch model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from simhelpers import START
+
+from plantcheck.diagnosis import detect_oscillation
+from plantcheck.simulator.cases import ultimate_gain
+from plantcheck.simulator.loop import ClosedLoop, LoopConfig, PIController, Process
+from plantcheck.simulator.plant import Plant
+from plantcheck.simulator.scenario import load_scenario, parse_scenario
+
+
+def _open_loop_step(process: Process, du: float, n: int, ts: float) -> np.ndarray:
+    """PV after an OP step of ``du`` at k = 0, controller in manual (OP held)."""
+    loop = ClosedLoop(LoopConfig(process=process, sample_time_s=ts, sp=50.0, u0=50.0))
+    loop.auto = False
+    loop.integral = 50.0 + du
+    return np.array([loop.step(50.0)[0] for _ in range(n)])
+
+
+@pytest.mark.parametrize(("tau", "theta", "ts"), [(10.0, 3.0, 1.0), (5.0, 0.0, 0.5)])
+def test_first_order_step_response_is_exact(tau: float, theta: float, ts: float) -> None:
+    K, du, n = 2.0, 5.0, 200
+    pv = _open_loop_step(Process("fopdt", K=K, tau_s=tau, theta_s=theta), du, n, ts)
+    t = np.arange(n) * ts  # the valve moves at t = 0; pv[k] is measured at t = k·ts
+    expected = 50.0 + K * du * (1.0 - np.exp(-np.clip(t - theta, 0.0, None) / tau))
+    np.testing.assert_allclose(pv, expected, atol=1e-9)
+
+
+def test_integrating_step_response_is_a_ramp() -> None:
+    K, du, ts, theta = 0.1, 4.0, 1.0, 2.0
+    pv = _open_loop_step(Process("integrating", K=K, theta_s=theta), du, 100, ts)
+    t = np.arange(100) * ts
+    expected = 50.0 + K * du * np.clip(t - theta, 0.0, None)
+    np.testing.assert_allclose(pv, expected, atol=1e-9)
+
+
+def test_sticky_valve_produces_its_limit_cycle() -> None:
+    sc = load_scenario()
+    plant = Plant(sc.model_copy(update={"loop": [s for s in sc.loop if s.id == "FIC102"]}), START)
+    pv = np.empty(3600)
+    op = np.empty(3600)
+    for k in range(3600):
+        plant.step()
+        pv[k], op[k] = plant.values[0, 1], plant.values[0, 2]
+    osc = detect_oscillation(pv[600:], 1.0)
+    assert osc.oscillating and osc.regularity is not None and osc.regularity > 3
+    # stick-slip: the valve moves in jumps, OP ramps between them (a triangle wave of amplitude
+    # about S/2 around its mean)
+    assert 1.0 < np.ptp(op[600:]) < 6.0
+
+
+def _cycles(kc: float, proc: Process, ti: float, ts: float) -> tuple[float, float]:
+    """Mean period (s) and amplitude ratio last/first cycles after a set-point bump."""
+    loop = ClosedLoop(
+        LoopConfig(process=proc, controller=PIController(Kc=kc, Ti_s=ti), sample_time_s=ts)
+    )
+    pv = np.array([loop.step(50.0 if k < 10 else 51.0)[0] for k in range(3000)])
+    x = pv[200:] - 51.0
+    ups = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+    period = float(np.mean(np.diff(ups))) * ts
+    return period, float(np.ptp(x[ups[8] : ups[10]]) / np.ptp(x[ups[1] : ups[3]]))
+
+
+def test_marginal_gain_oscillates_at_the_ultimate_period() -> None:
+    proc = Process("fopdt", K=1.5, tau_s=8.0, theta_s=2.0)
+    ts, ti = 0.1, 8.0
+    ku, tu = ultimate_gain(proc, ti, ts)
+    period, _ = _cycles(ku, proc, ti, ts)
+    assert period == pytest.approx(tu, rel=0.03)
+    # the ultimate gain separates dying from growing oscillations
+    assert _cycles(0.95 * ku, proc, ti, ts)[1] < 0.9
+    assert _cycles(1.05 * ku, proc, ti, ts)[1] > 1.1
+
+
+def test_manual_mode_holds_op_and_serves_mode_zero() -> None:
+    sc = parse_scenario(
+        '[[loop]]\nid = "A"\nmanual = [[10.0, 20.0]]\nnoise_std = 0.5\n'
+        'disturbances = [{ where = "load", random_walk_std = 0.5 }]\n'
+    )
+    plant = Plant(sc, START)
+    rows = []
+    for _ in range(30):
+        plant.step()
+        rows.append(plant.values[0].copy())
+    v = np.array(rows)
+    assert np.all(v[10:20, 4] == 0.0) and np.all(v[:10, 4] == 1.0) and np.all(v[20:, 4] == 1.0)
+    assert np.ptp(v[10:20, 2]) == 0.0  # OP frozen in manual
+    assert np.ptp(v[20:, 2]) > 0.0
+    assert np.all(np.isnan(v[:, 3]))  # no positioner feedback served
+
+
+def test_engineering_units_and_set_point_schedule() -> None:
+    sc = parse_scenario(
+        '[[loop]]\nid = "T"\nrange = [100.0, 300.0]\nunit = "degC"\n'
+        "sp_schedule = [[5.0, 60.0]]\nsp_repeat_s = 10.0\n"
+    )
+    plant = Plant(sc, START)
+    sps = []
+    for _ in range(20):
+        plant.step()
+        sps.append(plant.values[0, 0])
+    assert sps[0] == 200.0 and sps[5] == 220.0 and sps[10] == 200.0 and sps[15] == 220.0
