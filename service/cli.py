@@ -21,6 +21,7 @@ from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagno
 from plantcheck.diagnosis.result import json_safe
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_simulate import simulate_cmd
+from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
 from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
 
 DEFAULT_MAX_SAMPLES = 200_000
@@ -214,6 +215,9 @@ def oscillation_cmd(
 
 
 app.command("simulate")(simulate_cmd)
+app.command("import")(import_cmd)
+app.command("ingest")(ingest_cmd)
+app.add_typer(db_app, name="db")
 
 
 def _emit(payload: Any, as_json: bool) -> None:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -48,6 +48,8 @@ class LoopRecordFile:
     sample_time_s: float
     auto: NDArray[np.bool_] | None = None
     notes: list[str] = field(default_factory=list)
+    start_epoch_s: float | None = None
+    """POSIX time (s, UTC) of the first sample when the file has a ``timestamp`` column."""
 
     def get(self, name: str) -> FloatArray | None:
         """The named signal or None."""
@@ -189,7 +191,10 @@ def read_record(path: str | Path, sample_time_s: float | None = None) -> LoopRec
         t = t[keep]
         signals = {k: v[keep] for k, v in signals.items()}
         mode = mode[keep] if mode is not None else None
-    return _regularise(t, signals, mode, sample_time_s, notes)
+    rec = _regularise(t, signals, mode, sample_time_s, notes)
+    if time_name == "timestamp":
+        rec = replace(rec, start_epoch_s=float(t.min()))
+    return rec
 
 
 def _regularise(

@@ -30,7 +30,7 @@ class ConfigError(ValueError):
         super().__init__(f"{where}: {key}: {expected}")
 
 
-def _dotted(loc: tuple[int | str, ...]) -> str:
+def dotted(loc: tuple[int | str, ...]) -> str:
     out = ""
     for part in loc:
         out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
@@ -119,7 +119,7 @@ def parse_toml(text: str, model: type[M], path: str = "<config>") -> M:
         err = exc.errors()[0]
         loc = tuple(err["loc"])
         raise ConfigError(
-            path, locate(text, loc), _dotted(loc) or "(file)", _expected(dict(err))
+            path, locate(text, loc), dotted(loc) or "(file)", _expected(dict(err))
         ) from None
 
 

@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import asyncio
 import subprocess
 import sys
+import uuid
+from collections.abc import Iterator
 from pathlib import Path
 
+import pgcluster
 import pytest
 from helpers import RunCli
+from pgcluster import PgCluster
+
+from plantcheck.storage.database import upgrade
 
 
 @pytest.fixture
@@ -29,3 +36,41 @@ def run_cli() -> RunCli:
 @pytest.fixture
 def repo_root() -> Path:
     return Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def pg_cluster() -> Iterator[PgCluster]:
+    """A PostgreSQL cluster for the whole session (skipped, with the reason, where impossible)."""
+    reason = pgcluster.available()
+    if reason:
+        pytest.skip(reason)
+    cluster = PgCluster()
+    cluster.start()
+    try:
+        yield cluster
+    finally:
+        cluster.destroy()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """A fresh, migrated database of each kind (SQLite file; a new PostgreSQL database)."""
+    if request.param == "sqlite":
+        url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    else:
+        cluster: PgCluster = request.getfixturevalue("pg_cluster")
+        name = f"t{uuid.uuid4().hex[:12]}"
+        asyncio.run(_create_database(cluster.url, name))
+        url = cluster.url.rsplit("/", 1)[0] + f"/{name}"
+    upgrade(url)
+    yield url
+
+
+async def _create_database(url: str, name: str) -> None:
+    import asyncpg
+
+    conn = await asyncpg.connect(url.replace("postgresql+asyncpg", "postgresql"))
+    try:
+        await conn.execute(f"CREATE DATABASE {name}")
+    finally:
+        await conn.close()

@@ -1,0 +1,135 @@
+"""What every connector shares: the sample sink, per-device tasks with backoff, and logging a
+failure once and its recovery once (as Home Assistant's update coordinator does).
+
+A connector module (one per protocol) subclasses ``DeviceConnector`` and implements
+``connect``, ``collect`` and ``close``. ``run()`` keeps one device alive on its own task: it
+polls or waits for subscriptions, and on a failure it marks a gap (a Bad
+``BAD_NO_COMMUNICATION`` sample with no value for every tag), closes, and reconnects with
+exponential backoff and jitter. A failing device never slows the others.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import random
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
+
+SampleSink = Callable[[Sequence[Sample]], None]
+
+log = logging.getLogger("plantcheck.connectors")
+
+
+def now_us() -> int:
+    return time.time_ns() // 1000
+
+
+@dataclass
+class DeviceState:
+    """Health of one device: last success, current failure, counters."""
+
+    connected: bool = False
+    last_success_us: int | None = None
+    failing_since_us: int | None = None
+    last_error: str = ""
+    failures: int = 0
+    samples: int = 0
+
+
+class DeviceConnector(ABC):
+    """One device or server, polled or subscribed on its own task."""
+
+    def __init__(
+        self,
+        name: str,
+        sink: SampleSink,
+        tag_ids: Sequence[int],
+        *,
+        backoff_initial_s: float = 0.5,
+        backoff_max_s: float = 30.0,
+    ) -> None:
+        self.name = name
+        self.sink = sink
+        self.tag_ids = list(tag_ids)
+        self.state = DeviceState()
+        self.backoff_initial_s = backoff_initial_s
+        self.backoff_max_s = backoff_max_s
+        self._stop = asyncio.Event()
+
+    @abstractmethod
+    async def connect(self) -> None:
+        """Open the connection (raise on failure)."""
+
+    @abstractmethod
+    async def collect(self) -> None:
+        """Run while connected, handing samples to ``self.emit``; raise on connection loss."""
+
+    @abstractmethod
+    async def close(self) -> None:
+        """Close the connection (never raises)."""
+
+    def emit(self, rows: Sequence[Sample]) -> None:
+        self.state.samples += len(rows)
+        self.state.last_success_us = now_us()
+        self.sink(rows)
+
+    def mark_gap(self) -> None:
+        """Store a gap marker for every tag: Bad (no communication), no value."""
+        t = now_us()
+        self.sink([Sample(tid, t, t, None, BAD_NO_COMMUNICATION) for tid in self.tag_ids])
+
+    def _failed(self, exc: BaseException) -> None:
+        self.state.failures += 1
+        self.state.last_error = f"{type(exc).__name__}: {exc}"
+        if self.state.connected or self.state.failing_since_us is None:
+            if self.state.failing_since_us is None:
+                log.error("%s: unavailable: %s", self.name, self.state.last_error)
+                self.state.failing_since_us = now_us()
+            if self.state.connected:
+                self.mark_gap()
+        self.state.connected = False
+
+    def _recovered(self) -> None:
+        if self.state.failing_since_us is not None:
+            down = (now_us() - self.state.failing_since_us) / 1e6
+            log.warning("%s: back after %.1f s", self.name, down)
+        self.state.failing_since_us = None
+        self.state.connected = True
+
+    async def run(self) -> None:
+        """Connect, collect, reconnect with backoff, until ``stop()``."""
+        delay = self.backoff_initial_s
+        while not self._stop.is_set():
+            try:
+                await self.connect()
+                self._recovered()
+                delay = self.backoff_initial_s
+                await self.collect()
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:
+                self._failed(exc)
+            finally:
+                await self.close()
+            if self._stop.is_set():
+                break
+            wait = delay * random.uniform(0.8, 1.2)
+            delay = min(delay * 2, self.backoff_max_s)
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stop.wait(), wait)
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    async def sleep(self, seconds: float) -> bool:
+        """Sleep unless stopped; False when stopping."""
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(self._stop.wait(), seconds)
+        return not self._stop.is_set()

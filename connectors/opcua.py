@@ -1,0 +1,155 @@
+"""OPC UA client (asyncua 2.1): data-change subscriptions, polling as the fallback.
+
+Monitored items sample at ``sampling_interval_s`` with no deadband (raw samples: the diagnosis
+needs them) and a queue sized for the publishing interval, so no sample between two publish
+responses is lost. The client runs with ``auto_reconnect``: on a lost connection asyncua
+re-establishes the session and re-creates the subscriptions; plantcheck stores a gap marker at
+the loss. Source timestamps are kept (server timestamp, then receive time, when a server sends
+none); a Bad status is stored with no value.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+from collections.abc import Sequence
+from datetime import datetime
+from typing import Any
+
+from asyncua import Client, ua
+
+from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.status_codes import BAD_DATA_ENCODING_INVALID, is_bad
+
+log = logging.getLogger("plantcheck.connectors")
+
+
+def _us(t: datetime | None) -> int | None:
+    return None if t is None else round(t.timestamp() * 1e6)
+
+
+def to_sample(tag_id: int, dv: Any, recv_us: int) -> Sample:
+    """A stored sample from an OPC UA DataValue."""
+    status = int(dv.StatusCode.value) if dv.StatusCode is not None else 0
+    ts = _us(dv.SourceTimestamp) or _us(dv.ServerTimestamp) or recv_us
+    value: float | None = None
+    if not is_bad(status):
+        try:
+            value = float(dv.Value.Value)
+        except (TypeError, ValueError, AttributeError):
+            value = None
+        if value is None or not math.isfinite(value):
+            status, value = BAD_DATA_ENCODING_INVALID, None
+    return Sample(tag_id, ts, recv_us, value, status)
+
+
+class _Handler:
+    def __init__(self, owner: OpcUaConnector) -> None:
+        self.owner = owner
+
+    def datachange_notification(self, node: Any, val: Any, data: Any) -> None:
+        tag_id = self.owner.by_node.get(node.nodeid.to_string())
+        if tag_id is not None:
+            self.owner.emit([to_sample(tag_id, data.monitored_item.Value, now_us())])
+
+    def status_change_notification(self, status: Any) -> None:
+        log.warning("%s: subscription status %s", self.owner.name, status)
+
+
+class OpcUaConnector(DeviceConnector):
+    """Subscribes to (or polls) the tags of one OPC UA server."""
+
+    def __init__(
+        self,
+        name: str,
+        sink: SampleSink,
+        tags: Sequence[tuple[int, str]],
+        *,
+        url: str,
+        sampling_interval_s: float = 1.0,
+        mode: str = "subscribe",
+        timeout_s: float = 4.0,
+        **kw: float,
+    ) -> None:
+        super().__init__(name, sink, [t for t, _ in tags], **kw)
+        self.url = url
+        self.nodes = [(tid, ua.NodeId.from_string(n)) for tid, n in tags]
+        self.by_node = {n.to_string(): tid for tid, n in self.nodes}
+        self.sampling_interval_s = sampling_interval_s
+        self.mode = mode
+        self.timeout_s = timeout_s
+        self.client: Client | None = None
+        self.polling = mode == "poll"
+
+    async def _lost(self, exc: Exception) -> None:
+        self._failed(exc)
+
+    async def connect(self) -> None:
+        client = Client(self.url, timeout=self.timeout_s, auto_reconnect=True)
+        client.connection_lost_callback = self._lost
+        await client.connect()
+        self.client = client
+
+    async def _subscribe(self) -> None:
+        assert self.client is not None
+        sampling_ms = self.sampling_interval_s * 1000.0
+        publish_ms = max(sampling_ms, 500.0)
+        queue = max(10, math.ceil(2 * publish_ms / max(sampling_ms, 1.0)))
+        sub = await self.client.create_subscription(publish_ms, _Handler(self))
+        items = [
+            ua.MonitoredItemCreateRequest(
+                ItemToMonitor=ua.ReadValueId(NodeId=n, AttributeId=ua.AttributeIds.Value),
+                MonitoringMode=ua.MonitoringMode.Reporting,
+                RequestedParameters=ua.MonitoringParameters(
+                    ClientHandle=i,
+                    SamplingInterval=sampling_ms,
+                    QueueSize=queue,
+                    DiscardOldest=True,
+                ),
+            )
+            for i, (_, n) in enumerate(self.nodes)
+        ]
+        results = await sub.create_monitored_items(items)
+        bad = [r for r in results if isinstance(r, ua.StatusCode)]
+        if bad:
+            log.error("%s: %d node(s) could not be monitored: %s", self.name, len(bad), bad[0])
+
+    async def _poll_once(self) -> None:
+        assert self.client is not None
+        params = ua.ReadParameters()
+        params.NodesToRead = [
+            ua.ReadValueId(NodeId=n, AttributeId=ua.AttributeIds.Value) for _, n in self.nodes
+        ]
+        params.TimestampsToReturn = ua.TimestampsToReturn.Both
+        dvs = await self.client.uaclient.read(params)
+        recv = now_us()
+        self.emit([to_sample(tid, dv, recv) for (tid, _), dv in zip(self.nodes, dvs, strict=True)])
+
+    async def collect(self) -> None:
+        if not self.polling:
+            try:
+                await self._subscribe()
+            except Exception as exc:  # server without subscriptions: poll instead
+                log.warning("%s: subscriptions unavailable (%s); polling", self.name, exc)
+                self.polling = True
+        while True:
+            if self.polling:
+                await self._poll_once()
+            if not await self.sleep(self.sampling_interval_s if self.polling else 1.0):
+                return
+            if self.state.failing_since_us is not None and self.client is not None:
+                # asyncua reconnects on its own; notice it here to log the recovery once
+                with contextlib.suppress(Exception):
+                    await asyncio.wait_for(
+                        self.client.nodes.server_state.read_value(), self.timeout_s
+                    )
+                    self._recovered()
+
+    async def close(self) -> None:
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self.client.disconnect(), 5)
+            self.client = None

@@ -1,0 +1,131 @@
+"""Store commands: ``plantcheck db upgrade``, ``plantcheck import``, ``plantcheck ingest``."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from plantcheck.service.cli_common import fail, parse_duration
+from plantcheck.service.config import Config, load_config
+from plantcheck.service.records import RecordError, read_record
+from plantcheck.service.toml_config import ConfigError
+from plantcheck.storage.database import StorageError, upgrade
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.status_codes import BAD_DATA_ENCODING_INVALID, GOOD
+from plantcheck.storage.store import Store
+
+db_app = typer.Typer(help="Database schema (Alembic migrations).", no_args_is_help=True)
+
+ConfigOpt = Annotated[
+    Path | None, typer.Option("--config", help="Service configuration (default plantcheck.toml).")
+]
+
+
+def _config(path: Path | None) -> Config:
+    if path is None and not Path("plantcheck.toml").exists():
+        return Config()  # embedded default: SQLite file plantcheck.db in this folder
+    try:
+        return load_config(path)
+    except ConfigError as exc:
+        raise fail(f"invalid configuration: {exc}") from None
+
+
+@db_app.command("upgrade")
+def db_upgrade(config: ConfigOpt = None) -> None:
+    """Create or migrate the database named in the configuration to the newest schema."""
+    cfg = _config(config)
+    try:
+        rev = upgrade(cfg.storage.url)
+    except Exception as exc:
+        raise fail(f"cannot migrate {cfg.storage.url}: {exc}") from None
+    typer.echo(f"database at schema revision {rev}: {cfg.storage.url}")
+
+
+def import_cmd(
+    file: Annotated[Path, typer.Argument(help="Loop record (CSV, contracts §1).")],
+    loop: Annotated[str, typer.Option("--loop", help="Loop id to store the samples under.")],
+    config: ConfigOpt = None,
+    loop_type: Annotated[str, typer.Option(help="Loop type when the loop is new.")] = "other",
+    sample_time: Annotated[float | None, typer.Option(help="Sample time (s).")] = None,
+) -> None:
+    """Backfill a recorded file into the store (idempotent: a second import adds nothing)."""
+    cfg = _config(config)
+    try:
+        rec = read_record(file, sample_time)
+    except RecordError as exc:
+        raise fail(str(exc)) from None
+    if rec.start_epoch_s is None:
+        raise fail(f"{file}: needs a timestamp column (ISO 8601) to be stored at its real time")
+
+    async def run() -> int:
+        store = await Store.open(cfg.storage.url, config_hint=str(config or "plantcheck.toml"))
+        try:
+            sigs = [s for s in ("sp", "pv", "op", "mv") if rec.get(s) is not None]
+            if rec.auto is not None:
+                sigs.append("mode")
+            row = await store.ensure_loop(loop, loop_type, "import", sigs)
+            t_us = np.round((rec.start_epoch_s + rec.t) * 1e6).astype(np.int64)  # type: ignore[operator]
+            now = time.time_ns() // 1000
+            n = 0
+            for sig in sigs:
+                vals = rec.auto.astype(float) if sig == "mode" else rec.signals[sig]  # type: ignore[union-attr]
+                tid = row.tags[sig]
+                rows = [
+                    Sample(tid, int(t), now, float(v), GOOD)
+                    if np.isfinite(v)
+                    else Sample(tid, int(t), now, None, BAD_DATA_ENCODING_INVALID)
+                    for t, v in zip(t_us, vals, strict=True)
+                ]
+                for i in range(0, len(rows), 50_000):
+                    await store.write_samples(rows[i : i + 50_000])
+                n += len(rows)
+            return n
+        finally:
+            await store.close()
+
+    try:
+        n = asyncio.run(run())
+    except StorageError as exc:
+        raise fail(str(exc)) from None
+    typer.echo(f"imported {n} samples of loop {loop} ({rec.t.size} time points) from {file}")
+
+
+def ingest_cmd(
+    config: ConfigOpt = None,
+    duration: Annotated[
+        str | None, typer.Option(help="Stop after this long (e.g. 10m); default: until Ctrl-C.")
+    ] = None,
+) -> None:
+    """Collect the configured sources into the store (no diagnosis; `plantcheck run` does both)."""
+    from plantcheck.service.ingest import Ingestion
+
+    cfg = _config(config)
+    seconds = None
+    if duration is not None:
+        try:
+            seconds = parse_duration(duration)
+        except ValueError as exc:
+            raise fail(f"--duration: {exc}") from None
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
+
+    async def run() -> None:
+        ing = await Ingestion.start(cfg, config_hint=str(config or "plantcheck.toml"))
+        try:
+            await ing.wait(seconds)
+        finally:
+            await ing.stop()
+        typer.echo(
+            f"stored {ing.writer.stats.stored} samples; buffered {len(ing.writer.buffer)}; "
+            f"dropped {ing.writer.dropped}"
+        )
+
+    try:
+        asyncio.run(run())
+    except StorageError as exc:
+        raise fail(str(exc)) from None

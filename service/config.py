@@ -1,0 +1,181 @@
+"""Service configuration (contracts §4): one TOML file, ``plantcheck.toml`` by default.
+
+Tables: ``[storage]`` (database URL, batching, retention, durable buffer), ``[api]``,
+``[scheduler]``, any number of ``[[source]]`` (Modbus TCP or OPC UA endpoints) and
+``[[loop]]`` (id, type, source, the tag of each of SP/PV/OP/MV/mode, scaling). Every setting
+has a default where a sensible one exists; ``load_config`` refuses an invalid file with the
+line, the key and what was expected (``ConfigError``).
+
+Tag syntax:
+
+- Modbus: ``"hr:12:float32"`` = table (``hr`` holding, ``ir`` input registers), 0-based
+  address, data type (``float32``, ``float64``, ``int16``, ``uint16``, ``int32``, ``uint32``);
+  word and byte order come from the source.
+- OPC UA: a node id, ``"ns=2;s=FIC101.PV"``.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from plantcheck.service.toml_config import ConfigError, dotted, load_toml, locate
+
+DEFAULT_CONFIG = Path("plantcheck.toml")
+SIGNAL_KEYS = ("sp", "pv", "op", "mv", "mode")
+MODBUS_TAG = re.compile(r"^(hr|ir):(\d{1,5}):(float32|float64|int16|uint16|int32|uint32)$")
+OPCUA_TAG = re.compile(r"^(ns=\d+;)?[isgb]=.+$")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class StorageConfig(_Strict):
+    """Where samples and diagnoses live; the URL decides the database."""
+
+    url: str = "sqlite+aiosqlite:///plantcheck.db"
+    """``sqlite+aiosqlite:///FILE`` (embedded default) or ``postgresql+asyncpg://USER@HOST/DB``."""
+    commit_interval_s: float = Field(1.0, gt=0, le=60)
+    retention_days: float = Field(30.0, gt=0)
+    buffer_path: str = "plantcheck-buffer.db"
+    """Local durable buffer used while the store is unreachable."""
+    buffer_max_samples: int = Field(5_000_000, ge=1000)
+
+    @field_validator("url")
+    @classmethod
+    def _scheme(cls, v: str) -> str:
+        if not v.startswith(("sqlite+aiosqlite://", "postgresql+asyncpg://")):
+            raise ValueError(
+                "expected sqlite+aiosqlite:///FILE or postgresql+asyncpg://USER@HOST:PORT/DB"
+            )
+        return v
+
+
+class ApiConfig(_Strict):
+    """The HTTP API and web page."""
+
+    host: str = "127.0.0.1"
+    port: int = Field(8000, ge=0, le=65535)
+    api_key: str = ""
+    """Required (header ``X-API-Key``) for every endpoint that changes anything."""
+    require_key_for_reads: bool = False
+
+
+class SchedulerConfig(_Strict):
+    """Defaults of the rolling-window diagnosis (per loop overridable)."""
+
+    window_s: float = Field(7200.0, ge=60)
+    period_s: float = Field(600.0, ge=1)
+    workers: int = Field(2, ge=1, le=64)
+
+
+class SourceConfig(_Strict):
+    """A Modbus TCP device or an OPC UA server."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_.\-]{1,64}$")
+    protocol: Literal["modbus", "opcua"]
+    host: str = "127.0.0.1"
+    port: int = Field(502, ge=1, le=65535)
+    device_id: int = Field(1, ge=0, le=247)
+    word_order: Literal["big", "little"] = "big"
+    byte_order: Literal["big", "little"] = "big"
+    url: str = ""
+    """OPC UA endpoint, ``opc.tcp://HOST:PORT/path``."""
+    poll_interval_s: float = Field(1.0, gt=0, le=3600)
+    """Modbus poll period, OPC UA sampling interval (s)."""
+    timeout_s: float = Field(2.0, gt=0, le=60)
+    mode: Literal["subscribe", "poll"] = "subscribe"
+    """OPC UA: data-change subscription (default) or polling."""
+
+    @model_validator(mode="after")
+    def _endpoint(self) -> SourceConfig:
+        if self.protocol == "opcua" and not self.url.startswith("opc.tcp://"):
+            raise ValueError(f"source {self.name!r}: opcua needs url = 'opc.tcp://HOST:PORT/path'")
+        return self
+
+
+class ScaleConfig(_Strict):
+    """value = raw · gain + offset, applied to one signal."""
+
+    gain: float = 1.0
+    offset: float = 0.0
+
+
+class LoopConfig(_Strict):
+    """A control loop and where its signals come from."""
+
+    id: str = Field(pattern=r"^[A-Za-z0-9_.\-]{1,64}$")
+    type: Literal["flow", "pressure", "level", "temperature", "composition", "other"] = "other"
+    source: str
+    sp: str = ""
+    pv: str
+    op: str
+    mv: str = ""
+    mode: str = ""
+    scale: dict[Literal["sp", "pv", "op", "mv"], ScaleConfig] = {}
+    window_s: float | None = Field(None, ge=60)
+    period_s: float | None = Field(None, ge=1)
+    description: str = ""
+
+    def tags(self) -> dict[str, str]:
+        """Signal → tag address, for the signals this loop has."""
+        return {k: getattr(self, k) for k in SIGNAL_KEYS if getattr(self, k)}
+
+
+class Config(_Strict):
+    """The whole service configuration."""
+
+    storage: StorageConfig = StorageConfig()
+    api: ApiConfig = ApiConfig()
+    scheduler: SchedulerConfig = SchedulerConfig()
+    source: list[SourceConfig] = []
+    loop: list[LoopConfig] = []
+
+    def problems(self) -> list[tuple[tuple[str | int, ...], str]]:
+        """Cross-references the schema cannot check: (location, what was expected)."""
+        out: list[tuple[tuple[str | int, ...], str]] = []
+        sources = {s.name: s for s in self.source}
+        for i, s in enumerate(self.source):
+            if sum(x.name == s.name for x in self.source) > 1:
+                out.append((("source", i, "name"), f"source name {s.name!r} is used twice"))
+        seen: set[str] = set()
+        for i, lp in enumerate(self.loop):
+            if lp.id in seen:
+                out.append((("loop", i, "id"), f"loop id {lp.id!r} appears twice; make it unique"))
+            seen.add(lp.id)
+            src = sources.get(lp.source)
+            if src is None:
+                names = ", ".join(sorted(sources)) or "none defined"
+                out.append(
+                    (("loop", i, "source"), f"unknown source {lp.source!r} (sources: {names})")
+                )
+                continue
+            for sig, tag in lp.tags().items():
+                if src.protocol == "modbus" and not MODBUS_TAG.match(tag):
+                    out.append(
+                        (
+                            ("loop", i, sig),
+                            f"{tag!r} is not a Modbus tag TABLE:ADDRESS:TYPE, e.g. 'hr:12:float32'",
+                        )
+                    )
+                if src.protocol == "opcua" and not OPCUA_TAG.match(tag):
+                    out.append(
+                        (("loop", i, sig), f"{tag!r} is not a node id, e.g. 'ns=2;s=FIC101.PV'")
+                    )
+        return out
+
+
+def load_config(path: Path | None = None) -> Config:
+    """Read and validate the configuration (``ConfigError`` with line and key when invalid)."""
+    path = path or DEFAULT_CONFIG
+    cfg = load_toml(path, Config)
+    problems = cfg.problems()
+    if problems:
+        loc, msg = problems[0]
+        text = path.read_text(encoding="utf-8")
+        raise ConfigError(str(path), locate(text, loc), dotted(loc), msg)
+    return cfg

@@ -1,0 +1,106 @@
+"""Build the connectors of a configuration: one per source, all its loops' tags."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from pathlib import Path
+
+from plantcheck.connectors.base import DeviceConnector, SampleSink
+from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
+from plantcheck.connectors.opcua import OpcUaConnector
+from plantcheck.service.config import Config
+from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.writer import SampleWriter
+
+
+def build_connectors(
+    cfg: Config, loops: dict[str, LoopRow], sink: SampleSink
+) -> list[DeviceConnector]:
+    """The connectors for every configured source that has at least one loop."""
+    out: list[DeviceConnector] = []
+    for src in cfg.source:
+        mine = [lp for lp in cfg.loop if lp.source == src.name]
+        if not mine:
+            continue
+        if src.protocol == "modbus":
+            mtags = []
+            for lp in mine:
+                for sig, address in lp.tags().items():
+                    sc = lp.scale.get(sig)  # type: ignore[call-overload]
+                    gain, offset = (sc.gain, sc.offset) if sc else (1.0, 0.0)
+                    mtags.append(ModbusTag.parse(loops[lp.id].tags[sig], address, gain, offset))
+            out.append(
+                ModbusConnector(
+                    src.name,
+                    sink,
+                    mtags,
+                    host=src.host,
+                    port=src.port,
+                    device_id=src.device_id,
+                    word_order=src.word_order,
+                    byte_order=src.byte_order,
+                    poll_interval_s=src.poll_interval_s,
+                    timeout_s=src.timeout_s,
+                )
+            )
+        else:
+            utags = [
+                (loops[lp.id].tags[sig], address)
+                for lp in mine
+                for sig, address in lp.tags().items()
+            ]
+            out.append(
+                OpcUaConnector(
+                    src.name,
+                    sink,
+                    utags,
+                    url=src.url,
+                    sampling_interval_s=src.poll_interval_s,
+                    mode=src.mode,
+                    timeout_s=src.timeout_s,
+                )
+            )
+    return out
+
+
+class Ingestion:
+    """Store, sample writer and connectors of one configuration, running together."""
+
+    def __init__(
+        self, cfg: Config, store: Store, writer: SampleWriter, connectors: list[DeviceConnector]
+    ) -> None:
+        self.cfg = cfg
+        self.store = store
+        self.writer = writer
+        self.connectors = connectors
+        self.tasks: list[asyncio.Task[None]] = []
+        self._stop = asyncio.Event()
+
+    @classmethod
+    async def start(cls, cfg: Config, config_hint: str = "") -> Ingestion:
+        """Open the store (refusing an unmigrated one), map the loops, start every device."""
+        store = await Store.open(cfg.storage.url, config_hint=config_hint)
+        loops = await store.sync_config(cfg)
+        writer = SampleWriter(
+            store,
+            Path(cfg.storage.buffer_path),
+            buffer_max_samples=cfg.storage.buffer_max_samples,
+            commit_interval_s=cfg.storage.commit_interval_s,
+        )
+        writer.start()
+        ing = cls(cfg, store, writer, build_connectors(cfg, loops, writer.put))
+        ing.tasks = [asyncio.create_task(c.run()) for c in ing.connectors]
+        return ing
+
+    async def wait(self, seconds: float | None = None) -> None:
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(self._stop.wait(), seconds)
+
+    async def stop(self) -> None:
+        self._stop.set()
+        for c in self.connectors:
+            c.stop()
+        await asyncio.gather(*self.tasks, return_exceptions=True)
+        await self.writer.stop()
+        await self.store.close()

@@ -1,0 +1,69 @@
+"""Local durable buffer: samples wait here, in order, while the store is unreachable.
+
+A small SQLite file (stdlib ``sqlite3``, WAL) with an autoincrement sequence, so samples leave
+in the order they arrived. At most ``max_samples`` are kept: what does not fit is dropped,
+counted (``dropped``) and reported by the writer; nothing else is ever lost.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Sequence
+from pathlib import Path
+
+from plantcheck.storage.samples import Sample
+
+
+class DurableBuffer:
+    """FIFO of samples on disk."""
+
+    def __init__(self, path: Path, max_samples: int) -> None:
+        self.path = path
+        self.max_samples = max_samples
+        self.dropped = 0
+        self._db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False)
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._db.execute(
+            "CREATE TABLE IF NOT EXISTS pending (seq INTEGER PRIMARY KEY AUTOINCREMENT, "
+            "tag_id INTEGER, ts_us INTEGER, recv_us INTEGER, value REAL, status INTEGER)"
+        )
+        self._size = int(self._db.execute("SELECT count(*) FROM pending").fetchone()[0])
+
+    def __len__(self) -> int:
+        return self._size
+
+    def append(self, rows: Sequence[Sample]) -> int:
+        """Keep ``rows`` (as many as fit); returns how many were dropped."""
+        room = max(0, self.max_samples - self._size)
+        keep = rows[:room]
+        lost = len(rows) - len(keep)
+        if keep:
+            self._db.execute("BEGIN")
+            self._db.executemany(
+                "INSERT INTO pending (tag_id, ts_us, recv_us, value, status) VALUES (?,?,?,?,?)",
+                keep,
+            )
+            self._db.execute("COMMIT")
+            self._size += len(keep)
+        self.dropped += lost
+        return lost
+
+    def peek(self, n: int) -> tuple[int, list[Sample]]:
+        """The oldest ``n`` samples and the sequence number of the last of them."""
+        cur = self._db.execute(
+            "SELECT seq, tag_id, ts_us, recv_us, value, status FROM pending ORDER BY seq LIMIT ?",
+            (n,),
+        )
+        rows = cur.fetchall()
+        if not rows:
+            return 0, []
+        return int(rows[-1][0]), [Sample(*r[1:]) for r in rows]
+
+    def remove_through(self, seq: int) -> None:
+        """Forget every sample up to ``seq`` (after they were stored)."""
+        cur = self._db.execute("DELETE FROM pending WHERE seq <= ?", (seq,))
+        self._size = max(0, self._size - cur.rowcount)
+
+    def close(self) -> None:
+        self._db.close()

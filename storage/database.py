@@ -1,0 +1,89 @@
+"""Engines and migrations: the URL decides SQLite (embedded default) or PostgreSQL.
+
+SQLite runs in WAL mode with ``synchronous=NORMAL`` and a busy timeout, so readers never block
+the writer; PostgreSQL goes through asyncpg. Migrations are Alembic's (``migrations/``); the
+service refuses to start on a database that is not at the newest revision and names the
+command that fixes it (``plantcheck db upgrade``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from alembic import command
+from alembic.config import Config as AlembicConfig
+from alembic.script import ScriptDirectory
+from sqlalchemy import event, text
+from sqlalchemy.exc import DBAPIError, OperationalError
+from sqlalchemy.ext.asyncio import AsyncEngine, create_async_engine
+
+MIGRATIONS = Path(__file__).with_name("migrations")
+
+
+class StorageError(RuntimeError):
+    """The store cannot be used; the message names the problem and the fix."""
+
+
+def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:
+    cur = dbapi_conn.cursor()
+    cur.execute("PRAGMA journal_mode=WAL")
+    cur.execute("PRAGMA synchronous=NORMAL")
+    cur.execute("PRAGMA busy_timeout=10000")
+    cur.execute("PRAGMA foreign_keys=ON")
+    cur.close()
+
+
+def make_engine(url: str) -> AsyncEngine:
+    """An async engine for ``url`` (``sqlite+aiosqlite:///FILE`` or ``postgresql+asyncpg://``)."""
+    if url.startswith("sqlite"):
+        engine = create_async_engine(url)
+        event.listen(engine.sync_engine, "connect", _sqlite_pragmas)
+        return engine
+    return create_async_engine(url, pool_size=5, max_overflow=5, pool_pre_ping=True)
+
+
+def alembic_config(url: str) -> AlembicConfig:
+    cfg = AlembicConfig()
+    cfg.set_main_option("script_location", str(MIGRATIONS))
+    cfg.set_main_option("sqlalchemy.url", url.replace("%", "%%"))
+    return cfg
+
+
+def upgrade(url: str) -> str:
+    """Migrate the database at ``url`` to the newest revision (synchronous; not inside a
+    running event loop). Returns that revision."""
+    cfg = alembic_config(url)
+    command.upgrade(cfg, "head")
+    return head_revision()
+
+
+def head_revision() -> str:
+    head = ScriptDirectory.from_config(alembic_config("sqlite://")).get_current_head()
+    assert head is not None
+    return head
+
+
+async def current_revision(engine: AsyncEngine) -> str | None:
+    """The database's Alembic revision (None when it was never migrated)."""
+    try:
+        async with engine.connect() as conn:
+            row = (await conn.execute(text("SELECT version_num FROM alembic_version"))).first()
+    except (OperationalError, DBAPIError) as exc:
+        msg = str(exc).lower()
+        if "no such table" in msg or ("does not exist" in msg and "alembic_version" in msg):
+            return None
+        raise StorageError(f"cannot reach the database: {exc.orig}") from None
+    return None if row is None else str(row[0])
+
+
+async def require_migrated(engine: AsyncEngine, config_hint: str = "") -> None:
+    """Raise ``StorageError`` with the fixing command unless the schema is at the head."""
+    have, want = await current_revision(engine), head_revision()
+    if have != want:
+        cfg = f" --config {config_hint}" if config_hint else ""
+        state = "has no plantcheck schema" if have is None else f"is at revision {have}"
+        raise StorageError(
+            f"the database {engine.url.render_as_string(hide_password=True)} {state}, "
+            f"plantcheck needs {want}: run `plantcheck db upgrade{cfg}`"
+        )

@@ -1,0 +1,110 @@
+"""The store's tables (SQLAlchemy Core), one definition for SQLite and PostgreSQL.
+
+Times are integers: microseconds since 1970-01-01 UTC (``*_us``), exact, compact and cheap to
+index and to bulk-copy on both databases. Quality is the 32-bit OPC UA status code for every
+sample whatever its protocol (0 = Good; a value is NULL whenever the status is Bad).
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    Boolean,
+    Column,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    MetaData,
+    String,
+    Table,
+    Text,
+    UniqueConstraint,
+)
+
+metadata = MetaData()
+
+sources = Table(
+    "sources",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("name", String(64), nullable=False, unique=True),
+    Column("protocol", String(16), nullable=False),
+    Column("endpoint", String(256), nullable=False, default=""),
+)
+
+loops = Table(
+    "loops",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("name", String(64), nullable=False, unique=True),
+    Column("type", String(16), nullable=False, default="other"),
+    Column("source", String(64), nullable=False, default=""),
+    Column("description", Text, nullable=False, default=""),
+    Column("state", String(16), nullable=False, default="unknown"),
+    Column("cause", String(32), nullable=True),
+    Column("since_us", BigInteger, nullable=True),
+    Column("last_diagnosis_us", BigInteger, nullable=True),
+)
+
+tags = Table(
+    "tags",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("loop_id", Integer, ForeignKey("loops.id", ondelete="CASCADE"), nullable=False),
+    Column("signal", String(8), nullable=False),
+    Column("address", String(256), nullable=False),
+    UniqueConstraint("loop_id", "signal", name="uq_tags_loop_signal"),
+)
+
+samples = Table(
+    "samples",
+    metadata,
+    Column("tag_id", Integer, primary_key=True),
+    Column("ts_us", BigInteger, primary_key=True),
+    Column("recv_us", BigInteger, nullable=False),
+    Column("value", Float, nullable=True),
+    Column("status", BigInteger, nullable=False, default=0),
+)
+
+diagnoses = Table(
+    "diagnoses",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("loop_id", Integer, ForeignKey("loops.id", ondelete="CASCADE"), nullable=False),
+    Column("created_us", BigInteger, nullable=False),
+    Column("window_start_us", BigInteger, nullable=False),
+    Column("window_end_us", BigInteger, nullable=False),
+    Column("cause", String(32), nullable=False),
+    Column("state", String(16), nullable=False),
+    Column("payload", JSON, nullable=False),
+    Index("ix_diagnoses_loop_time", "loop_id", "window_end_us"),
+)
+
+stiction_estimates = Table(
+    "stiction_estimates",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("loop_id", Integer, ForeignKey("loops.id", ondelete="CASCADE"), nullable=False),
+    Column("at_us", BigInteger, nullable=False),
+    Column("S", Float, nullable=False),
+    Column("J", Float, nullable=True),
+    Column("source", String(16), nullable=False, default="op_pv"),
+    Index("ix_stiction_loop_time", "loop_id", "at_us"),
+)
+
+actions = Table(
+    "actions",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("loop_id", Integer, ForeignKey("loops.id", ondelete="CASCADE"), nullable=False),
+    Column("cause", String(32), nullable=False),
+    Column("code", String(48), nullable=False),
+    Column("text", Text, nullable=False),
+    Column("priority", Integer, nullable=False, default=3),
+    Column("since_us", BigInteger, nullable=False),
+    Column("active", Boolean, nullable=False, default=True),
+    Column("closed_us", BigInteger, nullable=True),
+    Index("ix_actions_active", "active", "loop_id"),
+)

@@ -1,0 +1,257 @@
+"""The time-series store: samples in, aligned loop windows out (SQLAlchemy 2.1, async).
+
+One class for both databases. Sample writes are idempotent on (tag, source timestamp):
+SQLite ``INSERT OR IGNORE``; PostgreSQL ``COPY`` into a temporary table, then
+``INSERT … SELECT … ON CONFLICT DO NOTHING`` (asyncpg's binary COPY is the fast path).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import and_, delete, insert, select, text, update
+from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
+from sqlalchemy.sql.elements import ColumnElement
+
+from plantcheck.service.config import Config
+from plantcheck.storage.database import make_engine, require_migrated
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.schema import loops, samples, sources, tags
+from plantcheck.storage.window import LoopWindow, align
+
+_COLUMNS = ("tag_id", "ts_us", "recv_us", "value", "status")
+
+
+@dataclass(frozen=True)
+class LoopRow:
+    """A stored loop with its tag ids by signal."""
+
+    id: int
+    name: str
+    type: str
+    source: str
+    tags: dict[str, int]
+
+
+class Store:
+    """Async access to one database (``Store.open(url)``; ``close()`` when done)."""
+
+    def __init__(self, engine: AsyncEngine) -> None:
+        self.engine = engine
+        self.dialect = engine.dialect.name
+
+    @classmethod
+    async def open(cls, url: str, *, check: bool = True, config_hint: str = "") -> Store:
+        """Connect; with ``check``, refuse an unmigrated database (``StorageError``)."""
+        store = cls(make_engine(url))
+        if check:
+            try:
+                await require_migrated(store.engine, config_hint)
+            except Exception:
+                await store.close()
+                raise
+        return store
+
+    async def close(self) -> None:
+        await self.engine.dispose()
+
+    async def ping(self) -> bool:
+        """Whether the database answers a trivial query."""
+        try:
+            async with self.engine.connect() as conn:
+                await conn.execute(text("SELECT 1"))
+            return True
+        except Exception:
+            return False
+
+    # -- configuration -------------------------------------------------------------------
+    async def sync_config(self, cfg: Config) -> dict[str, LoopRow]:
+        """Create or update sources, loops and their tag mapping from the configuration."""
+        async with self.engine.begin() as conn:
+            for s in cfg.source:
+                endpoint = s.url or f"{s.host}:{s.port}/{s.device_id}"
+                row = (
+                    await conn.execute(select(sources.c.id).where(sources.c.name == s.name))
+                ).first()
+                if row is None:
+                    await conn.execute(
+                        insert(sources).values(name=s.name, protocol=s.protocol, endpoint=endpoint)
+                    )
+                else:
+                    await conn.execute(
+                        update(sources)
+                        .where(sources.c.id == row[0])
+                        .values(protocol=s.protocol, endpoint=endpoint)
+                    )
+            for lp in cfg.loop:
+                await self._upsert_loop(conn, lp.id, lp.type, lp.source, lp.description, lp.tags())
+        return await self.loops()
+
+    async def ensure_loop(
+        self, name: str, loop_type: str = "other", source: str = "", signals: Sequence[str] = ()
+    ) -> LoopRow:
+        """The loop ``name`` with tags for ``signals`` (created when missing; for imports)."""
+        async with self.engine.begin() as conn:
+            await self._upsert_loop(
+                conn, name, loop_type, source, "", {s: f"import:{s}" for s in signals}, keep=True
+            )
+        return (await self.loops())[name]
+
+    async def _upsert_loop(
+        self,
+        conn: AsyncConnection,
+        name: str,
+        loop_type: str,
+        source: str,
+        description: str,
+        tag_map: dict[str, str],
+        keep: bool = False,
+    ) -> None:
+        row = (await conn.execute(select(loops.c.id).where(loops.c.name == name))).first()
+        if row is None:
+            res = await conn.execute(
+                insert(loops).values(
+                    name=name, type=loop_type, source=source, description=description
+                )
+            )
+            loop_id = int(res.inserted_primary_key[0])  # type: ignore[index]
+        else:
+            loop_id = int(row[0])
+            if not keep:
+                await conn.execute(
+                    update(loops)
+                    .where(loops.c.id == loop_id)
+                    .values(type=loop_type, source=source, description=description)
+                )
+        have = {
+            r.signal: r
+            for r in (await conn.execute(select(tags).where(tags.c.loop_id == loop_id))).all()
+        }
+        for sig, address in tag_map.items():
+            if sig not in have:
+                await conn.execute(
+                    insert(tags).values(loop_id=loop_id, signal=sig, address=address)
+                )
+            elif have[sig].address != address and not keep:
+                await conn.execute(
+                    update(tags).where(tags.c.id == have[sig].id).values(address=address)
+                )
+
+    async def loops(self) -> dict[str, LoopRow]:
+        """Every stored loop by name."""
+        async with self.engine.connect() as conn:
+            lrows = (await conn.execute(select(loops))).all()
+            trows = (await conn.execute(select(tags))).all()
+        by_loop: dict[int, dict[str, int]] = {}
+        for t in trows:
+            by_loop.setdefault(t.loop_id, {})[t.signal] = t.id
+        return {
+            r.name: LoopRow(r.id, r.name, r.type, r.source, by_loop.get(r.id, {})) for r in lrows
+        }
+
+    # -- samples -------------------------------------------------------------------------
+    async def write_samples(self, rows: Sequence[Sample]) -> None:
+        """Store ``rows`` in one transaction; rows already stored (same tag and source
+        timestamp) are left as they are, so a replay after an outage is harmless."""
+        if not rows:
+            return
+        if self.dialect == "postgresql":
+            await self._copy_samples(rows)
+            return
+        async with self.engine.begin() as conn:
+            await conn.execute(
+                insert(samples).prefix_with("OR IGNORE"),
+                [dict(zip(_COLUMNS, r, strict=True)) for r in rows],
+            )
+
+    async def _copy_samples(self, rows: Sequence[Sample]) -> None:
+        async with self.engine.connect() as conn:
+            raw = await conn.get_raw_connection()
+            apg: Any = raw.driver_connection
+            async with apg.transaction():
+                await apg.execute(
+                    "CREATE TEMP TABLE IF NOT EXISTS samples_in "
+                    "(LIKE samples INCLUDING DEFAULTS) ON COMMIT DELETE ROWS"
+                )
+                await apg.copy_records_to_table("samples_in", records=rows, columns=list(_COLUMNS))
+                await apg.execute(
+                    "INSERT INTO samples SELECT * FROM samples_in ON CONFLICT DO NOTHING"
+                )
+
+    async def count_samples(self, tag_ids: Sequence[int] | None = None) -> int:
+        q = select(text("count(*)")).select_from(samples)
+        if tag_ids is not None:
+            q = q.where(samples.c.tag_id.in_(list(tag_ids)))
+        async with self.engine.connect() as conn:
+            return int((await conn.execute(q)).scalar_one())
+
+    async def read_samples(
+        self,
+        loop: LoopRow,
+        start_us: int | None = None,
+        end_us: int | None = None,
+        limit: int | None = None,
+        signals: Sequence[str] | None = None,
+    ) -> list[tuple[str, int, int, float | None, int]]:
+        """(signal, ts_us, recv_us, value, status) of a loop in [start, end), oldest first."""
+        tag_sig = {tid: sig for sig, tid in loop.tags.items() if not signals or sig in signals}
+        if not tag_sig:
+            return []
+        cond: list[ColumnElement[bool]] = [samples.c.tag_id.in_(list(tag_sig))]
+        if start_us is not None:
+            cond.append(samples.c.ts_us >= start_us)
+        if end_us is not None:
+            cond.append(samples.c.ts_us < end_us)
+        q = select(samples).where(and_(*cond)).order_by(samples.c.ts_us, samples.c.tag_id)
+        if limit is not None:
+            q = q.limit(limit)
+        async with self.engine.connect() as conn:
+            rows = (await conn.execute(q)).all()
+        return [(tag_sig[r.tag_id], r.ts_us, r.recv_us, r.value, r.status) for r in rows]
+
+    async def read_window(
+        self, loop: LoopRow, start_us: int, end_us: int, sample_time_s: float | None = None
+    ) -> LoopWindow:
+        """The loop's SP/PV/OP/MV/mode over [start, end) on one time base with the coverage
+        of good samples (Bad and missing samples are NaN)."""
+        rows = await self.read_samples(loop, start_us, end_us)
+        series: dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
+        if rows:
+            sig = np.array([r[0] for r in rows])
+            t = np.array([r[1] for r in rows], dtype=np.int64)
+            v = np.array([np.nan if r[3] is None else r[3] for r in rows], dtype=np.float64)
+            for s in np.unique(sig):
+                m = sig == s
+                series[str(s)] = (t[m], v[m])
+        return align(series, start_us, end_us, sample_time_s)
+
+    async def latest_sample_us(self, loop: LoopRow) -> int | None:
+        """Source timestamp of the loop's newest stored sample."""
+        if not loop.tags:
+            return None
+        q = (
+            select(text("max(ts_us)"))
+            .select_from(samples)
+            .where(samples.c.tag_id.in_(list(loop.tags.values())))
+        )
+        async with self.engine.connect() as conn:
+            v = (await conn.execute(q)).scalar_one()
+        return None if v is None else int(v)
+
+    # -- housekeeping --------------------------------------------------------------------
+    async def purge(self, before_us: int) -> int:
+        """Delete samples older than ``before_us`` (retention); returns how many."""
+        async with self.engine.begin() as conn:
+            res = await conn.execute(delete(samples).where(samples.c.ts_us < before_us))
+        return int(res.rowcount or 0)
+
+    async def checkpoint(self) -> None:
+        """SQLite: fold the WAL back into the database file (no-op on PostgreSQL)."""
+        if self.dialect != "sqlite":
+            return
+        async with self.engine.connect() as conn:
+            await conn.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)")

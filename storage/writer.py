@@ -1,0 +1,151 @@
+"""Batched, outage-proof sample writer between the connectors and the store.
+
+Connectors call ``put()`` (never blocks, never raises). A background task commits what arrived
+about once a second (``commit_interval_s``). When the store fails, the batch goes to the local
+``DurableBuffer`` and the writer retries with backoff; once the store answers again the buffer
+is written back first, oldest first, idempotently (same tag and timestamp stored once), then
+new samples. A failure is logged once and the recovery once. On SQLite the WAL is checkpointed
+every ``checkpoint_every_s``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from plantcheck.storage.buffer import DurableBuffer
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.store import Store
+
+log = logging.getLogger("plantcheck.storage")
+
+
+@dataclass
+class WriterStats:
+    """Counters exposed by ``/metrics``: samples received and stored, batches, drops."""
+
+    received: int = 0
+    stored: int = 0
+    batches: int = 0
+    store_failures: int = 0
+    store_up: bool = True
+    last_commit_s: float = 0.0
+    commit_durations: list[float] = field(default_factory=list)
+
+
+class SampleWriter:
+    """Owns the in-memory queue, the durable buffer and the commit task."""
+
+    def __init__(
+        self,
+        store: Store,
+        buffer_path: Path,
+        *,
+        buffer_max_samples: int = 5_000_000,
+        commit_interval_s: float = 1.0,
+        batch_max: int = 50_000,
+        checkpoint_every_s: float = 300.0,
+    ) -> None:
+        self.store = store
+        self.buffer = DurableBuffer(buffer_path, buffer_max_samples)
+        self.commit_interval_s = commit_interval_s
+        self.batch_max = batch_max
+        self.checkpoint_every_s = checkpoint_every_s
+        self.stats = WriterStats()
+        self._pending: list[Sample] = []
+        self._task: asyncio.Task[None] | None = None
+        self._stop = asyncio.Event()
+        self._retry_s = commit_interval_s
+        self._next_try = 0.0
+
+    @property
+    def dropped(self) -> int:
+        """Samples lost because the durable buffer was full."""
+        return self.buffer.dropped
+
+    @property
+    def depth(self) -> int:
+        """Samples waiting: in memory plus in the durable buffer."""
+        return len(self._pending) + len(self.buffer)
+
+    def put(self, rows: Sequence[Sample]) -> None:
+        """Hand samples over (non-blocking)."""
+        self._pending.extend(rows)
+        self.stats.received += len(rows)
+        if len(self._pending) > 4 * self.batch_max:  # store slow or down: keep memory bounded
+            self._spill()
+
+    def _spill(self) -> None:
+        rows, self._pending = self._pending, []
+        lost = self.buffer.append(rows)
+        if lost:
+            log.error("durable buffer full: dropped %d samples (%d in all)", lost, self.dropped)
+
+    async def _write(self, rows: Sequence[Sample]) -> None:
+        t0 = time.perf_counter()
+        await self.store.write_samples(rows)
+        dt = time.perf_counter() - t0
+        self.stats.stored += len(rows)
+        self.stats.batches += 1
+        self.stats.last_commit_s = dt
+        self.stats.commit_durations = [*self.stats.commit_durations[-99:], dt]
+
+    async def flush(self) -> None:
+        """Write everything waiting now (buffer first); on failure keep it in the buffer."""
+        if time.monotonic() < self._next_try:
+            if self._pending:
+                self._spill()
+            return
+        try:
+            while len(self.buffer):
+                seq, rows = self.buffer.peek(self.batch_max)
+                await self._write(rows)
+                self.buffer.remove_through(seq)
+            while self._pending:
+                rows = self._pending[: self.batch_max]
+                await self._write(rows)
+                del self._pending[: len(rows)]
+        except Exception as exc:
+            self.stats.store_failures += 1
+            if self.stats.store_up:
+                log.error("store unreachable, buffering samples locally: %s", exc)
+            self.stats.store_up = False
+            if self._pending:
+                self._spill()
+            self._next_try = time.monotonic() + self._retry_s
+            self._retry_s = min(self._retry_s * 2, 30.0)
+            return
+        if not self.stats.store_up:
+            log.warning("store reachable again; buffered samples written")
+        self.stats.store_up = True
+        self._retry_s = self.commit_interval_s
+
+    async def _run(self) -> None:
+        last_checkpoint = time.monotonic()
+        while not self._stop.is_set():
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stop.wait(), self.commit_interval_s)
+            await self.flush()
+            if time.monotonic() - last_checkpoint > self.checkpoint_every_s and self.stats.store_up:
+                with contextlib.suppress(Exception):
+                    await self.store.checkpoint()
+                last_checkpoint = time.monotonic()
+
+    def start(self) -> None:
+        self._task = asyncio.get_running_loop().create_task(self._run())
+
+    async def stop(self) -> None:
+        """Commit what is left (or keep it in the durable buffer) and stop."""
+        self._stop.set()
+        if self._task is not None:
+            await self._task
+        self._next_try = 0.0
+        await self.flush()
+        if self._pending:
+            self._spill()
+        self.buffer.close()

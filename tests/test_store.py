@@ -1,0 +1,111 @@
+"""The time-series store on a real SQLite file and a real PostgreSQL cluster."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plantcheck.service.config import Config, LoopConfig, SourceConfig
+from plantcheck.storage.database import StorageError
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.status_codes import BAD_SENSOR_FAILURE, GOOD
+from plantcheck.storage.store import Store
+
+T0 = 1_767_225_600_000_000  # 2026-01-01T00:00:00Z in µs
+
+
+def _cfg() -> Config:
+    return Config(
+        source=[SourceConfig(name="plc", protocol="modbus", port=5020)],
+        loop=[
+            LoopConfig(id="FIC1", type="flow", source="plc", sp="hr:10:float32",
+                       pv="hr:12:float32", op="hr:14:float32")
+        ],
+    )  # fmt: skip
+
+
+def test_write_read_window_idempotent_and_bad_is_null(db_url: str) -> None:
+    async def body() -> None:
+        store = await Store.open(db_url)
+        try:
+            loops = await store.sync_config(_cfg())
+            lp = loops["FIC1"]
+            assert set(lp.tags) == {"sp", "pv", "op"}
+            n = 600
+            rows = []
+            for k in range(n):
+                ts = T0 + k * 1_000_000
+                rows.append(Sample(lp.tags["sp"], ts, ts, 50.0, GOOD))
+                rows.append(Sample(lp.tags["op"], ts, ts, 40.0 + k % 7, GOOD))
+                if 100 <= k < 130:
+                    continue  # a gap in PV
+                if k == 200:
+                    rows.append(Sample(lp.tags["pv"], ts, ts, None, BAD_SENSOR_FAILURE))
+                else:
+                    rows.append(Sample(lp.tags["pv"], ts, ts, 50.0 + 0.01 * k, GOOD))
+            await store.write_samples(rows)
+            await store.write_samples(rows[:500])  # a replay stores nothing twice
+            assert await store.count_samples() == len(rows)
+            w = await store.read_window(lp, T0, T0 + n * 1_000_000)
+            assert w.sample_time_s == pytest.approx(1.0)
+            assert w["pv"].size == n
+            assert np.isnan(w["pv"][100:130]).all() and np.isnan(w["pv"][200])
+            assert w["pv"][300] == pytest.approx(53.0)
+            assert w.coverage == pytest.approx((n - 31) / n)
+            assert np.isnan(w["mv"]).all() and "mv" not in w.signals
+            raw = await store.read_samples(lp, T0 + 200_000_000, T0 + 201_000_000, signals=["pv"])
+            assert raw == [("pv", T0 + 200_000_000, T0 + 200_000_000, None, BAD_SENSOR_FAILURE)]
+            assert await store.latest_sample_us(lp) == T0 + (n - 1) * 1_000_000
+            assert await store.purge(T0 + 300 * 1_000_000) > 0
+            w2 = await store.read_window(lp, T0, T0 + n * 1_000_000, sample_time_s=1.0)
+            assert np.isnan(w2["op"][:300]).all() and np.isfinite(w2["op"][300:]).all()
+            await store.checkpoint()
+        finally:
+            await store.close()
+
+    asyncio.run(body())
+
+
+def test_unmigrated_database_is_refused_with_the_fix(tmp_path: Path) -> None:
+    async def body() -> None:
+        with pytest.raises(StorageError, match=r"run `plantcheck db upgrade --config x.toml`"):
+            await Store.open(f"sqlite+aiosqlite:///{tmp_path / 'new.db'}", config_hint="x.toml")
+
+    asyncio.run(body())
+
+
+def test_db_upgrade_and_import_cli(tmp_path: Path, run_cli) -> None:  # type: ignore[no-untyped-def]
+    cfg = tmp_path / "plantcheck.toml"
+    cfg.write_text(f'[storage]\nurl = "sqlite+aiosqlite:///{tmp_path / "p.db"}"\n')
+    rec = tmp_path / "r.csv"
+    rec.write_text(
+        "timestamp,sp,pv,op\n2026-01-01T00:00:00Z,50,49.5,40\n2026-01-01T00:00:01Z,50,,41\n"
+        "2026-01-01T00:00:02Z,50,50.2,42\n"
+    )
+    r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
+    assert r.returncode == 2 and "plantcheck db upgrade" in r.stderr
+    assert run_cli("db", "upgrade", "--config", str(cfg)).returncode == 0
+    r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
+    assert r.returncode == 0, r.stderr
+    assert "imported 9 samples" in r.stdout
+    r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
+    assert r.returncode == 0
+
+    async def check() -> None:
+        store = await Store.open(f"sqlite+aiosqlite:///{tmp_path / 'p.db'}")
+        try:
+            assert await store.count_samples() == 9  # imported twice, stored once
+            lp = (await store.loops())["L1"]
+            rows = await store.read_samples(lp, signals=["pv"])
+            assert [r[3] for r in rows] == [49.5, None, 50.2]
+        finally:
+            await store.close()
+
+    asyncio.run(check())
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[storage]\nurl = "mysql://x"\n')
+    r = run_cli("db", "upgrade", "--config", str(bad))
+    assert r.returncode == 2 and f"{bad}:2: storage.url" in r.stderr
