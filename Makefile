@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 
-.PHONY: test venv lint typecheck pytest demo clean
+.PHONY: test venv lint typecheck pytest demo clean system-deps
 
 $(BIN)/plantcheck: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,7 +23,18 @@ typecheck: venv
 	@tmp=$$(mktemp -d) && ln -s "$(CURDIR)" "$$tmp/plantcheck" && \
 	  MYPYPATH="$$tmp" $(BIN)/mypy -p plantcheck; rc=$$?; rm -rf "$$tmp"; exit $$rc
 
-pytest: venv
+# Debian packages the tests use: PostgreSQL (a throw-away cluster per test session).
+system-deps:
+	@if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then \
+	  if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	    echo "installing PostgreSQL (Debian package postgresql) for the storage tests"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null; \
+	  else \
+	    echo "PostgreSQL is not installed and cannot be installed here: its tests will be skipped"; \
+	  fi; \
+	fi
+
+pytest: venv system-deps
 	$(BIN)/pytest -q
 
 test: lint typecheck pytest

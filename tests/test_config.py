@@ -1,0 +1,53 @@
+"""The service configuration: the README example validates, bad files are refused precisely."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from plantcheck.service.config import load_config
+from plantcheck.service.toml_config import ConfigError
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_readme_example_is_a_valid_configuration(tmp_path: Path) -> None:
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"```toml\n(\[storage\].*?)```", text, re.S)
+    assert block, "README has no configuration example"
+    path = tmp_path / "plantcheck.toml"
+    path.write_text(block.group(1))
+    cfg = load_config(path)
+    assert {s.protocol for s in cfg.source} == {"modbus", "opcua"}
+    assert cfg.loop[0].tags()["pv"] == "hr:22:float32"
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ('[api]\nport = "x"\n', ":2: api.port: Input should be a valid integer"),
+        (
+            '[[source]]\nname = "a"\nprotocol = "modbus"\n[[loop]]\nid = "L"\nsource = "b"\n'
+            'pv = "hr:1:float32"\nop = "hr:3:float32"\n',
+            ":6: loop[0].source: unknown source 'b' (sources: a)",
+        ),
+        (
+            '[[source]]\nname = "a"\nprotocol = "modbus"\n[[loop]]\nid = "L"\nsource = "a"\n'
+            'pv = "holding:1"\nop = "hr:3:float32"\n',
+            ":7: loop[0].pv: 'holding:1' is not a Modbus tag",
+        ),
+        ('[[source]]\nname = "u"\nprotocol = "opcua"\n', ": source[0]: Value error, source 'u'"),
+        ("[storage]\nurl = 'mysql://x'\n", ":2: storage.url: Value error, expected sqlite"),
+        ("[storage\n", ":1: syntax: not valid TOML"),
+    ],
+)
+def test_bad_configuration_is_refused_with_line_and_key(
+    tmp_path: Path, text: str, expected: str
+) -> None:
+    path = tmp_path / "plantcheck.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert expected in str(info.value), str(info.value)
