@@ -87,6 +87,7 @@ class Ingestion:
             Path(cfg.storage.buffer_path),
             buffer_max_samples=cfg.storage.buffer_max_samples,
             commit_interval_s=cfg.storage.commit_interval_s,
+            retention_s=cfg.storage.retention_days * 86400.0,
         )
         writer.start()
         ing = cls(cfg, store, writer, build_connectors(cfg, loops, writer.put))

@@ -5,7 +5,7 @@ about once a second (``commit_interval_s``). When the store fails, the batch goe
 ``DurableBuffer`` and the writer retries with backoff; once the store answers again the buffer
 is written back first, oldest first, idempotently (same tag and timestamp stored once), then
 new samples. A failure is logged once and the recovery once. On SQLite the WAL is checkpointed
-every ``checkpoint_every_s``.
+every ``checkpoint_every_s``; samples older than ``retention_s`` are deleted every hour.
 """
 
 from __future__ import annotations
@@ -50,12 +50,16 @@ class SampleWriter:
         commit_interval_s: float = 1.0,
         batch_max: int = 50_000,
         checkpoint_every_s: float = 300.0,
+        retention_s: float | None = None,
+        purge_every_s: float = 3600.0,
     ) -> None:
         self.store = store
         self.buffer = DurableBuffer(buffer_path, buffer_max_samples)
         self.commit_interval_s = commit_interval_s
         self.batch_max = batch_max
         self.checkpoint_every_s = checkpoint_every_s
+        self.retention_s = retention_s
+        self.purge_every_s = purge_every_s
         self.stats = WriterStats()
         self._pending: list[Sample] = []
         self._task: asyncio.Task[None] | None = None
@@ -125,8 +129,21 @@ class SampleWriter:
         self.stats.store_up = True
         self._retry_s = self.commit_interval_s
 
+    async def purge_old(self) -> int:
+        """Apply the retention policy: delete samples older than ``retention_s``."""
+        if self.retention_s is None:
+            return 0
+        cutoff_us = time.time_ns() // 1000 - int(self.retention_s * 1e6)
+        n = await self.store.purge(cutoff_us)
+        if n:
+            log.info(
+                "retention: deleted %d samples older than %.0f days", n, self.retention_s / 86400
+            )
+        return n
+
     async def _run(self) -> None:
         last_checkpoint = time.monotonic()
+        last_purge = 0.0
         while not self._stop.is_set():
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._stop.wait(), self.commit_interval_s)
@@ -135,6 +152,10 @@ class SampleWriter:
                 with contextlib.suppress(Exception):
                     await self.store.checkpoint()
                 last_checkpoint = time.monotonic()
+            if time.monotonic() - last_purge > self.purge_every_s and self.stats.store_up:
+                with contextlib.suppress(Exception):
+                    await self.purge_old()
+                last_purge = time.monotonic()
 
     def start(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run())
