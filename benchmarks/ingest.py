@@ -27,33 +27,40 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from pgcluster import PgCluster, available
-from simhelpers import free_port
+from pymodbus.client import AsyncModbusTcpClient
+from simhelpers import scaled_scenario
 
-from plantcheck.connectors.modbus import ModbusTag, bare_read_loop, plan_blocks
+from plantcheck.connectors.modbus import Block, ModbusTag, plan_blocks
 from plantcheck.service.config import Config, LoopConfig, SourceConfig, StorageConfig
 from plantcheck.service.ingest import Ingestion
 from plantcheck.simulator.runner import PlantRunner
-from plantcheck.simulator.scenario import LoopSpec, load_scenario
 from plantcheck.storage.database import upgrade
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import Store
 
 
-def plant(n: int, port: int) -> PlantRunner:
-    base = load_scenario()
-    loops = [
-        LoopSpec.model_validate({**base.loop[i % 8].model_dump(), "id": f"L{i:05d}"})
-        for i in range(n)
-    ]
-    sc = base.model_copy(
-        update={
-            "loop": loops,
-            "modbus": base.modbus.model_copy(update={"port": port}),
-            "opcua": base.opcua.model_copy(update={"enabled": False}),
-            "admin": base.admin.model_copy(update={"enabled": False}),
-        }
-    )
-    return PlantRunner(sc)
+def plant(n: int) -> tuple[PlantRunner, int]:
+    """The benchmark plant (Modbus only, real time) and its Modbus port."""
+    sc = scaled_scenario(n)
+    return PlantRunner(sc), sc.modbus.port
+
+
+async def bare_read_loop(host: str, port: int, blocks: list[Block], seconds: float) -> int:
+    """Reference: read all blocks once a second, decode nothing, store nothing; returns the
+    number of tag values read."""
+    client = AsyncModbusTcpClient(host, port=port, timeout=5, retries=0)
+    await client.connect()
+    n = 0
+    t_end = time.monotonic() + seconds
+    while time.monotonic() < t_end:
+        t0 = time.monotonic()
+        for b in blocks:
+            r = await client.read_holding_registers(b.start, count=b.count, device_id=1)
+            n += len(b.tags)
+            _ = r.registers
+        await asyncio.sleep(max(0.0, 1.0 - (time.monotonic() - t0)))
+    client.close()
+    return n
 
 
 def config(url: str, port: int, n: int, buffer: Path) -> Config:
@@ -76,8 +83,7 @@ def config(url: str, port: int, n: int, buffer: Path) -> Config:
 
 
 async def sustained(url: str, n: int, seconds: float, tmp: Path) -> tuple[float, int]:
-    port = free_port()
-    runner = plant(n, port)
+    runner, port = plant(n)
     task = asyncio.create_task(runner.run())
     await runner.ready.wait()
     ing = await Ingestion.start(config(url, port, n, tmp / f"buf{port}.db"))
@@ -93,8 +99,7 @@ async def sustained(url: str, n: int, seconds: float, tmp: Path) -> tuple[float,
 
 
 async def bare(n: int, seconds: float) -> float:
-    port = free_port()
-    runner = plant(n, port)
+    runner, port = plant(n)
     task = asyncio.create_task(runner.run())
     await runner.ready.wait()
     tags = [

@@ -15,19 +15,16 @@ from __future__ import annotations
 import argparse
 import asyncio
 import multiprocessing as mp
-import socket
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from plantcheck.simulator.runner import PlantRunner
-from plantcheck.simulator.scenario import LoopSpec, Scenario, load_scenario
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from simhelpers import scaled_scenario
 
 
 def _reader(port: int, n_regs: int, seconds: float, out: mp.Queue) -> None:  # type: ignore[type-arg]
@@ -57,24 +54,6 @@ def _reader(port: int, n_regs: int, seconds: float, out: mp.Queue) -> None:  # t
     asyncio.run(main())
 
 
-def scaled(n: int, base: Scenario, speed: float, modbus_port: int, opcua: bool) -> Scenario:
-    loops = [
-        LoopSpec.model_validate({**base.loop[i % len(base.loop)].model_dump(), "id": f"L{i:05d}"})
-        for i in range(n)
-    ]
-    return base.model_copy(
-        update={
-            "loop": loops,
-            "clock": base.clock.model_copy(update={"speed": speed}),
-            "modbus": base.modbus.model_copy(update={"port": modbus_port}),
-            "opcua": base.opcua.model_copy(
-                update={"enabled": opcua, "url": f"opc.tcp://127.0.0.1:{free_port()}/p/"}
-            ),
-            "admin": base.admin.model_copy(update={"enabled": False}),
-        }
-    )
-
-
 async def _run_for(runner: PlantRunner, seconds: float) -> tuple[float, int]:
     task = asyncio.create_task(runner.run())
     await runner.ready.wait()
@@ -88,9 +67,8 @@ async def _run_for(runner: PlantRunner, seconds: float) -> tuple[float, int]:
 
 
 def capacity(n: int, seconds: float) -> dict[str, float]:
-    base = load_scenario()
-    port = free_port()
-    sc = scaled(n, base, 1.0, port, opcua=False)
+    sc = scaled_scenario(n)
+    port = sc.modbus.port
     runner = PlantRunner(sc)
     assert runner.modbus is not None
     q: mp.Queue = mp.Queue()  # type: ignore[type-arg]
@@ -113,7 +91,7 @@ def capacity(n: int, seconds: float) -> dict[str, float]:
 
 
 def speedup(speed: float, seconds: float) -> float:
-    sc = scaled(8, load_scenario(), speed, free_port(), opcua=True)
+    sc = scaled_scenario(8, speed=speed, opcua=True)
     runner = PlantRunner(sc)
     wall, steps = asyncio.run(_run_for(runner, seconds))
     return steps * sc.clock.sample_time_s / wall

@@ -88,12 +88,11 @@ class DeviceConnector(ABC):
     def _failed(self, exc: BaseException) -> None:
         self.state.failures += 1
         self.state.last_error = f"{type(exc).__name__}: {exc}"
-        if self.state.connected or self.state.failing_since_us is None:
-            if self.state.failing_since_us is None:
-                log.error("%s: unavailable: %s", self.name, self.state.last_error)
-                self.state.failing_since_us = now_us()
-            if self.state.connected:
-                self.mark_gap()
+        if self.state.failing_since_us is None:
+            log.error("%s: unavailable: %s", self.name, self.state.last_error)
+            self.state.failing_since_us = now_us()
+        if self.state.connected:
+            self.mark_gap()
         self.state.connected = False
 
     def _recovered(self) -> None:

@@ -12,7 +12,6 @@ response. Decoding follows the source's word and byte order and the loop's scali
 
 from __future__ import annotations
 
-import asyncio
 import math
 import time
 from collections.abc import Sequence
@@ -21,7 +20,7 @@ from dataclasses import dataclass
 from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
+from plantcheck.connectors.base import DeviceConnector, SampleSink
 from plantcheck.connectors.modbus_codec import WIDTH, DataType, Order, decode
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.status_codes import (
@@ -174,24 +173,3 @@ class ModbusConnector(DeviceConnector):
         if self.client is not None:
             self.client.close()
             self.client = None
-
-
-async def bare_read_loop(host: str, port: int, blocks: Sequence[Block], seconds: float) -> int:
-    """Reference for the ingest benchmark: read all blocks as fast as the poll period allows,
-    decode nothing, store nothing; returns the number of register values read."""
-    client = AsyncModbusTcpClient(host, port=port, timeout=5, retries=0)
-    await client.connect()
-    n = 0
-    t_end = time.monotonic() + seconds
-    while time.monotonic() < t_end:
-        t0 = time.monotonic()
-        for b in blocks:
-            r = await client.read_holding_registers(b.start, count=b.count, device_id=1)
-            n += len(b.tags)
-            _ = r.registers
-        await asyncio.sleep(max(0.0, 1.0 - (time.monotonic() - t0)))
-    client.close()
-    return n
-
-
-__all__ = ["ModbusConnector", "ModbusTag", "now_us", "plan_blocks"]

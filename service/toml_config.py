@@ -45,7 +45,6 @@ def locate(text: str, loc: tuple[int | str, ...]) -> int | None:
     """
     lines = text.splitlines()
     start, end = 0, len(lines)
-    keys = [p for p in loc if isinstance(p, str)]
     # descend through table headers: a header whose dotted name matches a prefix of loc
     i = 0
     header_path: list[str] = []
@@ -79,7 +78,7 @@ def locate(text: str, loc: tuple[int | str, ...]) -> int | None:
     remaining = [p for p in loc[i:] if isinstance(p, str)]
     if not remaining:
         return start if header_path else None
-    for key in remaining or keys[-1:]:
+    for key in remaining:
         pat = re.compile(rf"(^|[{{,\s]){re.escape(key)}\s*=")
         for n in range(start, end):
             if pat.search(lines[n].split("#", 1)[0]):

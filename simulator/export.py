@@ -79,19 +79,20 @@ def map_toml(scenario: Scenario, source: str = "sim-modbus") -> str:
         f'byte_order = "{m.byte_order}"',
         "",
     ]
-    for i, spec in enumerate(scenario.loop):
-        base = loop_base(i)
-        lines += [
-            "[[loop]]",
-            f'id = "{spec.id}"',
-            f'type = "{spec.type}"',
-            f'source = "{source}"',
-        ]
-        for j, sig in enumerate(SIGNALS):
-            if sig == "MV" and not spec.expose_mv:
-                continue
-            lines.append(f'{sig.lower()} = "hr:{base + 2 * j}:float32"')
-        lines.append("")
+    specs = {spec.id: spec for spec in scenario.loop}
+    for e in register_map(scenario):
+        spec = specs[e.loop]
+        if e.signal == SIGNALS[0]:
+            lines += [
+                "[[loop]]",
+                f'id = "{spec.id}"',
+                f'type = "{spec.type}"',
+                f'source = "{source}"',
+            ]
+        if e.signal != "MV" or spec.expose_mv:
+            lines.append(f'{e.signal.lower()} = "hr:{e.address}:float32"')
+        if e.signal == SIGNALS[-1]:
+            lines.append("")
     return "\n".join(lines)
 
 

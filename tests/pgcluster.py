@@ -16,6 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from helpers import free_port
+
 
 def _bindir() -> Path | None:
     found = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
@@ -43,12 +45,6 @@ def available() -> str | None:
     return None
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 class PgCluster:
     """``start()`` / ``stop()`` / ``url``; stop and start again keep the data (outage tests)."""
 
@@ -58,7 +54,7 @@ class PgCluster:
         self.bindir = bindir
         self.dir = Path(tempfile.mkdtemp(prefix="plantcheck-pg-"))
         self.data = self.dir / "data"
-        self.port = _free_port()
+        self.port = free_port()
         self.user = "plantcheck"
         if os.geteuid() == 0:
             shutil.chown(self.dir, "postgres", "postgres")

@@ -3,23 +3,17 @@
 from __future__ import annotations
 
 import asyncio
-import socket
 from collections.abc import Awaitable, Callable
 from datetime import UTC, datetime
 from typing import TypeVar
 
+from helpers import free_port
+
 from plantcheck.simulator.runner import PlantRunner
-from plantcheck.simulator.scenario import Scenario, load_scenario
+from plantcheck.simulator.scenario import LoopSpec, Scenario, load_scenario
 
 T = TypeVar("T")
 START = datetime(2026, 1, 1, tzinfo=UTC)
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def scenario_on_free_ports(
@@ -41,6 +35,27 @@ def scenario_on_free_ports(
                 update={"url": f"opc.tcp://127.0.0.1:{free_port()}/plantcheck/"}
             ),
             "admin": sc.admin.model_copy(update={"host": "127.0.0.1", "port": free_port()}),
+        }
+    )
+
+
+def scaled_scenario(
+    n: int, *, speed: float = 1.0, modbus_port: int | None = None, opcua: bool = False
+) -> Scenario:
+    """``n`` copies of the default scenario's loops (ids L00000…), servers on free ports and
+    no admin port: the plant of the capacity and ingest benchmarks."""
+    base = load_scenario()
+    loops = [
+        LoopSpec.model_validate({**base.loop[i % len(base.loop)].model_dump(), "id": f"L{i:05d}"})
+        for i in range(n)
+    ]
+    sc = scenario_on_free_ports(base, speed=speed)
+    return sc.model_copy(
+        update={
+            "loop": loops,
+            "modbus": sc.modbus.model_copy(update={"port": modbus_port or free_port()}),
+            "opcua": sc.opcua.model_copy(update={"enabled": opcua}),
+            "admin": sc.admin.model_copy(update={"enabled": False}),
         }
     )
 

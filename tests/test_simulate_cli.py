@@ -11,9 +11,8 @@ import time
 import tomllib
 from pathlib import Path
 
-from helpers import RunCli
+from helpers import RunCli, free_port
 from pymodbus.client import AsyncModbusTcpClient
-from simhelpers import free_port
 
 from plantcheck.connectors.modbus_codec import decode
 

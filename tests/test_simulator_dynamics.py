@@ -11,7 +11,7 @@ from plantcheck.diagnosis import detect_oscillation
 from plantcheck.simulator.cases import ultimate_gain
 from plantcheck.simulator.loop import ClosedLoop, LoopConfig, PIController, Process
 from plantcheck.simulator.plant import Plant
-from plantcheck.simulator.scenario import load_scenario, parse_scenario
+from plantcheck.simulator.scenario import Scenario, load_scenario, parse_scenario
 
 
 def _open_loop_step(process: Process, du: float, n: int, ts: float) -> np.ndarray:
@@ -20,6 +20,16 @@ def _open_loop_step(process: Process, du: float, n: int, ts: float) -> np.ndarra
     loop.auto = False
     loop.integral = 50.0 + du
     return np.array([loop.step(50.0)[0] for _ in range(n)])
+
+
+def _served(sc: Scenario, n: int) -> np.ndarray:
+    """The first loop's served (SP, PV, OP, MV, Mode) over ``n`` steps of the plant."""
+    plant = Plant(sc, START)
+    rows = []
+    for _ in range(n):
+        plant.step()
+        rows.append(plant.values[0].copy())
+    return np.array(rows)
 
 
 @pytest.mark.parametrize(("tau", "theta", "ts"), [(10.0, 3.0, 1.0), (5.0, 0.0, 0.5)])
@@ -41,12 +51,8 @@ def test_integrating_step_response_is_a_ramp() -> None:
 
 def test_sticky_valve_produces_its_limit_cycle() -> None:
     sc = load_scenario()
-    plant = Plant(sc.model_copy(update={"loop": [s for s in sc.loop if s.id == "FIC102"]}), START)
-    pv = np.empty(3600)
-    op = np.empty(3600)
-    for k in range(3600):
-        plant.step()
-        pv[k], op[k] = plant.values[0, 1], plant.values[0, 2]
+    v = _served(sc.model_copy(update={"loop": [s for s in sc.loop if s.id == "FIC102"]}), 3600)
+    pv, op = v[:, 1], v[:, 2]
     osc = detect_oscillation(pv[600:], 1.0)
     assert osc.oscillating and osc.regularity is not None and osc.regularity > 3
     # stick-slip: the valve moves in jumps, OP ramps between them (a triangle wave of amplitude
@@ -82,12 +88,7 @@ def test_manual_mode_holds_op_and_serves_mode_zero() -> None:
         '[[loop]]\nid = "A"\nmanual = [[10.0, 20.0]]\nnoise_std = 0.5\n'
         'disturbances = [{ where = "load", random_walk_std = 0.5 }]\n'
     )
-    plant = Plant(sc, START)
-    rows = []
-    for _ in range(30):
-        plant.step()
-        rows.append(plant.values[0].copy())
-    v = np.array(rows)
+    v = _served(sc, 30)
     assert np.all(v[10:20, 4] == 0.0) and np.all(v[:10, 4] == 1.0) and np.all(v[20:, 4] == 1.0)
     assert np.ptp(v[10:20, 2]) == 0.0  # OP frozen in manual
     assert np.ptp(v[20:, 2]) > 0.0
@@ -99,9 +100,5 @@ def test_engineering_units_and_set_point_schedule() -> None:
         '[[loop]]\nid = "T"\nrange = [100.0, 300.0]\nunit = "degC"\n'
         "sp_schedule = [[5.0, 60.0]]\nsp_repeat_s = 10.0\n"
     )
-    plant = Plant(sc, START)
-    sps = []
-    for _ in range(20):
-        plant.step()
-        sps.append(plant.values[0, 0])
+    sps = _served(sc, 20)[:, 0]
     assert sps[0] == 200.0 and sps[5] == 220.0 and sps[10] == 200.0 and sps[15] == 220.0
