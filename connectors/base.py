@@ -62,6 +62,8 @@ class DeviceConnector(ABC):
         self.backoff_initial_s = backoff_initial_s
         self.backoff_max_s = backoff_max_s
         self._stop = asyncio.Event()
+        self._gap_us = 0
+        self._after_gap: set[int] = set()
 
     @abstractmethod
     async def connect(self) -> None:
@@ -76,6 +78,8 @@ class DeviceConnector(ABC):
         """Close the connection (never raises)."""
 
     def emit(self, rows: Sequence[Sample]) -> None:
+        if self._after_gap:
+            rows = [self._not_before_gap(r) for r in rows]
         self.state.samples += len(rows)
         self.state.last_success_us = now_us()
         self.sink(rows)
@@ -84,6 +88,21 @@ class DeviceConnector(ABC):
         """Store a gap marker for every tag: Bad (no communication), no value."""
         t = now_us()
         self.sink([Sample(tid, t, t, None, BAD_NO_COMMUNICATION) for tid in self.tag_ids])
+        self._gap_us = t
+        self._after_gap = set(self.tag_ids)
+
+    def _not_before_gap(self, r: Sample) -> Sample:
+        """The first sample of a tag after a gap marker is never stored before the marker.
+
+        A server that reports only changes (OPC UA) sends, on reconnection, a constant value
+        with the source timestamp of its last change; stored as it is, it would sit before the
+        marker and the gap would hide a value that in fact held. Stored just after the marker,
+        it is held from there on.
+        """
+        if r.tag_id not in self._after_gap:
+            return r
+        self._after_gap.discard(r.tag_id)
+        return r if r.ts_us > self._gap_us else r._replace(ts_us=self._gap_us + 1)
 
     def _failed(self, exc: BaseException) -> None:
         self.state.failures += 1
@@ -116,6 +135,9 @@ class DeviceConnector(ABC):
             except Exception as exc:
                 self._failed(exc)
             finally:
+                if self._stop.is_set() and self.state.connected:
+                    self.mark_gap()  # stopping: what comes after is unknown until restart
+                    self.state.connected = False
                 await self.close()
             if self._stop.is_set():
                 break

@@ -155,3 +155,40 @@ class Diagnosis:
             "actions": self.actions,
             "notes": self.notes,
         }
+
+
+STATES = ("ok", "warning", "fault", "unknown")
+"""Loop states of the health table (contracts §5)."""
+
+_FAULTS = frozenset(
+    {
+        "stiction",
+        "aggressive_tuning",
+        "saturation",
+        "deadband_backlash",
+        "positioner_fault",
+        "positioner_tuning",
+        "air_leakage",
+        "actuator_undersized",
+    }
+)
+_UNKNOWN = frozenset({"data_quality", "insufficient_data"})
+
+
+def state_of(cause: str) -> str:
+    """Health state of a loop with this cause: ``ok``; ``fault`` when equipment or tuning is
+    wrong and the loop performs badly (sticky or faulty valve, oscillating tuning, saturated
+    valve); ``unknown`` when the window could not be judged; ``warning`` otherwise (sluggish
+    tuning, an upstream disturbance, an oscillation of unknown cause, manual mode)."""
+    if cause == "ok":
+        return "ok"
+    if cause in _FAULTS:
+        return "fault"
+    if cause in _UNKNOWN:
+        return "unknown"
+    return "warning"
+
+
+def priority_of(cause: str) -> int:
+    """Priority of the suggested action: 1 (fault), 2 (warning), 3 (unknown or ok)."""
+    return {"fault": 1, "warning": 2}.get(state_of(cause), 3)

@@ -211,11 +211,16 @@ def check_window(
 
     # OP saturation (methods §1.4)
     op_pp = float(np.ptp(op_f))
+    band = p.saturation_band
     if op_pp == 0.0:
+        if op_f[0] <= band or op_f[0] >= 100.0 - band:
+            # clamped at a limit the whole window: saturation by definition (methods §1.4)
+            indices["saturation_fraction"] = 1.0
+            notes.append(f"OP held at {op_f[0]:g} % (a limit) over the whole window")
+            return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
         notes.append("OP constant over the window: controller in manual or output frozen")
         return WindowReport("manual_mode", notes, pv_f, op_f, sp_f, (0, n), indices)
     # A saturated controller output is clamped: it sits at its extreme value, near 0 or 100 %.
-    band = p.saturation_band
     op_lo, op_hi = float(np.min(op_f)), float(np.max(op_f))
     pin = min(p.saturation_pin, 0.05 * op_pp)
     pinned_lo = (op_f <= band) & (op_f <= op_lo + pin)

@@ -20,6 +20,7 @@ from plantcheck import __version__
 from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagnose_advanced
 from plantcheck.diagnosis.result import json_safe
 from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_run import demo_cmd, run_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
 from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
@@ -217,6 +218,8 @@ def oscillation_cmd(
 app.command("simulate")(simulate_cmd)
 app.command("import")(import_cmd)
 app.command("ingest")(ingest_cmd)
+app.command("run")(run_cmd)
+app.command("demo")(demo_cmd)
 app.add_typer(db_app, name="db")
 
 

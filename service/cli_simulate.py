@@ -76,8 +76,12 @@ def simulate_cmd(
     ] = "2h",
     export_map: Annotated[
         Path | None,
-        typer.Option(help="Write the Modbus register map to this .csv or .toml file and exit."),
+        typer.Option(help="Write the register map to this .csv or .toml file and exit."),
     ] = None,
+    map_protocol: Annotated[
+        str,
+        typer.Option(help="With --export-map .toml: the source protocol, modbus or opcua."),
+    ] = "modbus",
     quiet: Annotated[bool, typer.Option(help="Do not print the register map at start.")] = False,
 ) -> None:
     """Run the simulated plant: Modbus TCP and OPC UA servers on loopback, faults on demand.
@@ -95,7 +99,13 @@ def simulate_cmd(
     if export_map is not None:
         if export_map.suffix not in (".csv", ".toml"):
             raise fail("--export-map: the file name must end in .csv or .toml")
-        text = map_csv(scenario) if export_map.suffix == ".csv" else map_toml(scenario)
+        if map_protocol not in ("modbus", "opcua"):
+            raise fail(f"--map-protocol must be modbus or opcua, not {map_protocol!r}")
+        text = (
+            map_csv(scenario)
+            if export_map.suffix == ".csv"
+            else map_toml(scenario, protocol=map_protocol)
+        )
         export_map.write_text(text, encoding="utf-8")
         typer.echo(f"register map of {len(scenario.loop)} loops written to {export_map}")
         return

@@ -71,6 +71,9 @@ class SchedulerConfig(_Strict):
     window_s: float = Field(7200.0, ge=60)
     period_s: float = Field(600.0, ge=1)
     workers: int = Field(2, ge=1, le=64)
+    """Worker processes that run the diagnosis chain."""
+    confirm: int = Field(2, ge=1, le=100)
+    """Consecutive diagnoses that must agree on a new cause before a loop's state changes."""
 
 
 class SourceConfig(_Strict):
@@ -120,6 +123,8 @@ class LoopConfig(_Strict):
     window_s: float | None = Field(None, ge=60)
     period_s: float | None = Field(None, ge=1)
     description: str = ""
+    stiction_limit: float = Field(2.0, gt=0, le=100)
+    """S (% of valve travel) at which the valve is due for maintenance (stiction report)."""
 
     def tags(self) -> dict[str, str]:
         """Signal → tag address, for the signals this loop has."""

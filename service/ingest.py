@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from plantcheck.connectors.base import DeviceConnector, SampleSink
 from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
 from plantcheck.connectors.opcua import OpcUaConnector
 from plantcheck.service.config import Config
+from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.writer import SampleWriter
 
@@ -78,8 +80,15 @@ class Ingestion:
         self._stop = asyncio.Event()
 
     @classmethod
-    async def start(cls, cfg: Config, config_hint: str = "") -> Ingestion:
-        """Open the store (refusing an unmigrated one), map the loops, start every device."""
+    async def start(
+        cls,
+        cfg: Config,
+        config_hint: str = "",
+        on_samples: Callable[[int], None] | None = None,
+        connect: bool = True,
+    ) -> Ingestion:
+        """Open the store (refusing an unmigrated one), map the loops, start every device
+        (none without ``connect``); ``on_samples(n)`` is told of every batch received."""
         store = await Store.open(cfg.storage.url, config_hint=config_hint)
         loops = await store.sync_config(cfg)
         writer = SampleWriter(
@@ -90,7 +99,16 @@ class Ingestion:
             retention_s=cfg.storage.retention_days * 86400.0,
         )
         writer.start()
-        ing = cls(cfg, store, writer, build_connectors(cfg, loops, writer.put))
+        sink: SampleSink = writer.put
+        if on_samples is not None:
+            count = on_samples
+
+            def sink(rows: Sequence[Sample]) -> None:
+                count(len(rows))
+                writer.put(rows)
+
+        connectors = build_connectors(cfg, loops, sink) if connect else []
+        ing = cls(cfg, store, writer, connectors)
         ing.tasks = [asyncio.create_task(c.run()) for c in ing.connectors]
         return ing
 

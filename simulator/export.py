@@ -65,20 +65,26 @@ def map_csv(scenario: Scenario) -> str:
     return buf.getvalue()
 
 
-def map_toml(scenario: Scenario, source: str = "sim-modbus") -> str:
-    """``[[source]]`` and ``[[loop]]`` tables of the service configuration for this plant."""
-    m = scenario.modbus
-    lines = [
-        "[[source]]",
-        f'name = "{source}"',
-        'protocol = "modbus"',
-        f'host = "{m.host}"',
-        f"port = {m.port}",
-        f"device_id = {m.device_id}",
-        f'word_order = "{m.word_order}"',
-        f'byte_order = "{m.byte_order}"',
-        "",
-    ]
+def map_toml(scenario: Scenario, protocol: str = "modbus", source: str | None = None) -> str:
+    """``[[source]]`` and ``[[loop]]`` tables of the service configuration for this plant,
+    reading it over Modbus TCP (register addresses) or OPC UA (node ids)."""
+    name = source or f"sim-{protocol}"
+    if protocol == "opcua":
+        lines = ["[[source]]", f'name = "{name}"', 'protocol = "opcua"']
+        lines += [f'url = "{scenario.opcua.url}"', ""]
+    else:
+        m = scenario.modbus
+        lines = [
+            "[[source]]",
+            f'name = "{name}"',
+            'protocol = "modbus"',
+            f'host = "{m.host}"',
+            f"port = {m.port}",
+            f"device_id = {m.device_id}",
+            f'word_order = "{m.word_order}"',
+            f'byte_order = "{m.byte_order}"',
+            "",
+        ]
     specs = {spec.id: spec for spec in scenario.loop}
     for e in register_map(scenario):
         spec = specs[e.loop]
@@ -87,10 +93,13 @@ def map_toml(scenario: Scenario, source: str = "sim-modbus") -> str:
                 "[[loop]]",
                 f'id = "{spec.id}"',
                 f'type = "{spec.type}"',
-                f'source = "{source}"',
+                f'source = "{name}"',
             ]
         if e.signal != "MV" or spec.expose_mv:
-            lines.append(f'{e.signal.lower()} = "hr:{e.address}:float32"')
+            address = (
+                f"ns=2;s={spec.id}.{e.signal}" if protocol == "opcua" else f"hr:{e.address}:float32"
+            )
+            lines.append(f'{e.signal.lower()} = "{address}"')
         if e.signal == SIGNALS[-1]:
             lines.append("")
     return "\n".join(lines)

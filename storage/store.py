@@ -21,7 +21,7 @@ from plantcheck.service.config import Config
 from plantcheck.storage.database import make_engine, require_migrated
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.schema import loops, samples, sources, tags
-from plantcheck.storage.window import LoopWindow, align
+from plantcheck.storage.window import HELD, LoopWindow, align
 
 _COLUMNS = ("tag_id", "ts_us", "recv_us", "value", "status")
 
@@ -214,11 +214,18 @@ class Store:
         return [(tag_sig[r.tag_id], r.ts_us, r.recv_us, r.value, r.status) for r in rows]
 
     async def read_window(
-        self, loop: LoopRow, start_us: int, end_us: int, sample_time_s: float | None = None
+        self,
+        loop: LoopRow,
+        start_us: int,
+        end_us: int,
+        sample_time_s: float | None = None,
+        hold: tuple[str, ...] = HELD,
     ) -> LoopWindow:
         """The loop's SP/PV/OP/MV/mode over [start, end) on one time base with the coverage
-        of good samples (Bad and missing samples are NaN)."""
+        of good samples (Bad and missing samples are NaN; ``hold`` signals keep their last
+        value)."""
         rows = await self.read_samples(loop, start_us, end_us)
+        before = await self._last_before(loop, start_us, hold)
         series: dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
         if rows:
             sig = np.array([r[0] for r in rows])
@@ -227,20 +234,51 @@ class Store:
             for s in np.unique(sig):
                 m = sig == s
                 series[str(s)] = (t[m], v[m])
-        return align(series, start_us, end_us, sample_time_s)
+        return align(series, start_us, end_us, sample_time_s, before, hold)
 
-    async def latest_sample_us(self, loop: LoopRow) -> int | None:
-        """Source timestamp of the loop's newest stored sample."""
-        if not loop.tags:
+    async def _last_before(
+        self, loop: LoopRow, at_us: int, signals: Sequence[str]
+    ) -> dict[str, float]:
+        """The last stored value of each of ``signals`` before ``at_us`` (NaN when Bad)."""
+        out: dict[str, float] = {}
+        async with self.engine.connect() as conn:
+            for sig in signals:
+                if sig not in loop.tags:
+                    continue
+                q = (
+                    select(samples.c.value)
+                    .where(samples.c.tag_id == loop.tags[sig], samples.c.ts_us < at_us)
+                    .order_by(samples.c.ts_us.desc())
+                    .limit(1)
+                )
+                row = (await conn.execute(q)).first()
+                if row is not None:
+                    out[sig] = np.nan if row[0] is None else float(row[0])
+        return out
+
+    async def latest_sample_us(self, loop: LoopRow, signal: str | None = None) -> int | None:
+        """Source timestamp of the loop's newest stored sample (of ``signal`` only, if given)."""
+        span = await self.sample_span_us(loop, signal)
+        return None if span is None else span[1]
+
+    async def sample_span_us(
+        self, loop: LoopRow, signal: str | None = None
+    ) -> tuple[int, int] | None:
+        """Source timestamps of the loop's oldest and newest stored samples (of ``signal``)."""
+        if signal is None:
+            ids = list(loop.tags.values())
+        else:
+            ids = [loop.tags[signal]] if signal in loop.tags else []
+        if not ids:
             return None
         q = (
-            select(text("max(ts_us)"))
+            select(text("min(ts_us)"), text("max(ts_us)"))
             .select_from(samples)
-            .where(samples.c.tag_id.in_(list(loop.tags.values())))
+            .where(samples.c.tag_id.in_(ids))
         )
         async with self.engine.connect() as conn:
-            v = (await conn.execute(q)).scalar_one()
-        return None if v is None else int(v)
+            lo, hi = (await conn.execute(q)).one()
+        return None if hi is None else (int(lo), int(hi))
 
     # -- housekeeping --------------------------------------------------------------------
     async def purge(self, before_us: int) -> int:

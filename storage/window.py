@@ -9,6 +9,9 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 SIGNALS = ("sp", "pv", "op", "mv", "mode")
+HELD = ("sp", "mode")
+"""Signals that hold their value between samples: a set point or a mode is reported only when
+it changes (OPC UA data-change subscriptions report nothing while a value is constant)."""
 
 
 @dataclass(frozen=True)
@@ -43,12 +46,17 @@ def align(
     start_us: int,
     end_us: int,
     sample_time_s: float | None = None,
+    before: dict[str, float] | None = None,
+    hold: tuple[str, ...] = HELD,
 ) -> LoopWindow:
     """Put each signal's (timestamps µs, values) on a common grid over [start, end).
 
     The grid step is ``sample_time_s`` or the median spacing of PV's timestamps. Each sample
     goes to its nearest grid point (the later sample wins a tie); grid points without a sample
-    stay NaN, so gaps remain gaps.
+    stay NaN, so gaps remain gaps, except for the ``hold`` signals (default SP, mode), which
+    keep their last value (from ``before``, the last value stored before the window, at first)
+    until the next sample; a Bad sample (NaN) ends the hold. ``hold`` names the held signals: every
+    signal of a source that reports only changes (OPC UA subscriptions).
     """
     ts = sample_time_s
     if ts is None:
@@ -59,14 +67,23 @@ def align(
     grid = start_us + step_us * np.arange(n, dtype=np.int64)
     values: dict[str, FloatArray] = {}
     present = []
+    before = before or {}
     for sig in SIGNALS:
         out = np.full(n, np.nan)
+        has = np.zeros(n, dtype=bool)
         if sig in series and series[sig][0].size:
             t, v = series[sig]
             present.append(sig)
             idx = np.rint((t - start_us) / step_us).astype(np.int64)
             ok = (idx >= 0) & (idx < n)
             out[idx[ok]] = v[ok]
+            has[idx[ok]] = True
+        if sig in hold and (sig in before or has.any()):
+            if sig not in present:
+                present.append(sig)
+            last = np.maximum.accumulate(np.where(has, np.arange(n), -1))
+            first = before.get(sig, np.nan)
+            out = np.where(last >= 0, out[np.maximum(last, 0)], first)
         values[sig] = out
     good = np.isfinite(values["pv"]) & np.isfinite(values["op"])
     coverage = float(good.mean()) if n else 0.0

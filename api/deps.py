@@ -1,0 +1,147 @@
+"""Dependencies of the routes: the service backend, API-key checks, time parameters."""
+
+from __future__ import annotations
+
+import secrets
+from datetime import UTC, datetime
+from typing import Annotated, Protocol
+
+from fastapi import Depends, Header, HTTPException, Query, Request
+
+from plantcheck.service.config import ApiConfig
+from plantcheck.storage.store import LoopRow, Store
+
+API_KEY_HEADER = "X-API-Key"
+
+
+class ServiceBackend(Protocol):
+    """What the API needs from the running service (``service/runtime.Runtime``)."""
+
+    @property
+    def store(self) -> Store: ...
+
+    @property
+    def stiction_limits(self) -> dict[str, float]: ...
+
+    async def readiness(self) -> dict[str, bool]: ...
+
+    async def diagnose_now(self, loop_id: str) -> str | None: ...
+
+    def metrics_text(self) -> bytes: ...
+
+
+def get_backend(request: Request) -> ServiceBackend:
+    """The backend the lifespan put on the app (503 while starting or stopping)."""
+    backend: ServiceBackend | None = getattr(request.app.state, "backend", None)
+    if backend is None:
+        raise HTTPException(503, "the service is starting or stopping; retry in a moment")
+    return backend
+
+
+def get_api_config(request: Request) -> ApiConfig:
+    cfg: ApiConfig = request.app.state.api_config
+    return cfg
+
+
+Backend = Annotated[ServiceBackend, Depends(get_backend)]
+
+
+def _key_matches(given: str | None, expected: str) -> bool:
+    return given is not None and secrets.compare_digest(given.encode(), expected.encode())
+
+
+def require_read_key(
+    cfg: Annotated[ApiConfig, Depends(get_api_config)],
+    x_api_key: Annotated[str | None, Header(include_in_schema=False)] = None,
+) -> None:
+    """Reads need the key only when ``api.require_key_for_reads`` is set."""
+    if cfg.require_key_for_reads and not _key_matches(x_api_key, cfg.api_key):
+        raise HTTPException(
+            401,
+            f"missing or wrong {API_KEY_HEADER} header (reads require the API key)",
+            headers={"WWW-Authenticate": API_KEY_HEADER},
+        )
+
+
+def require_write_key(
+    cfg: Annotated[ApiConfig, Depends(get_api_config)],
+    x_api_key: Annotated[str | None, Header(include_in_schema=False)] = None,
+) -> None:
+    """Every request that changes anything needs the key; without a configured key such
+    requests are refused (set ``api.api_key`` in the configuration to enable them)."""
+    if not cfg.api_key:
+        raise HTTPException(
+            403, "no API key is configured: set [api] api_key to enable this endpoint"
+        )
+    if not _key_matches(x_api_key, cfg.api_key):
+        raise HTTPException(
+            401,
+            f"missing or wrong {API_KEY_HEADER} header",
+            headers={"WWW-Authenticate": API_KEY_HEADER},
+        )
+
+
+def to_us(t: datetime | None) -> int | None:
+    """µs since the epoch; a time without a zone is taken as UTC."""
+    if t is None:
+        return None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=UTC)
+    return int(t.timestamp() * 1_000_000)
+
+
+def iso(us: int | None) -> str | None:
+    """ISO 8601 UTC with a ``Z``, to the millisecond (None stays None)."""
+    if us is None:
+        return None
+    dt = datetime.fromtimestamp(us / 1e6, UTC)
+    return dt.isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def iso_required(us: int) -> str:
+    out = iso(us)
+    assert out is not None
+    return out
+
+
+class TimeRange:
+    """``from`` and ``to`` query parameters (ISO 8601; no zone = UTC), ``from`` before ``to``."""
+
+    def __init__(
+        self,
+        start: Annotated[
+            datetime | None,
+            Query(alias="from", description="Start, ISO 8601 (no zone = UTC), inclusive."),
+        ] = None,
+        end: Annotated[
+            datetime | None,
+            Query(alias="to", description="End, ISO 8601 (no zone = UTC), exclusive."),
+        ] = None,
+    ) -> None:
+        try:
+            self.start_us = to_us(start)
+            self.end_us = to_us(end)
+        except (OverflowError, ValueError, OSError):
+            raise HTTPException(
+                422,
+                [{"loc": ["query", "from/to"], "msg": "time out of range", "type": "value_error"}],
+            ) from None
+        if self.start_us is not None and self.end_us is not None and self.start_us > self.end_us:
+            raise HTTPException(
+                422,
+                [
+                    {
+                        "loc": ["query", "from"],
+                        "msg": "'from' must not be later than 'to'",
+                        "type": "value_error",
+                    }
+                ],
+            )
+
+
+async def get_loop(backend: Backend, loop_id: str) -> LoopRow:
+    """The stored loop ``loop_id`` (404 naming it when unknown)."""
+    row = (await backend.store.loops()).get(loop_id)
+    if row is None:
+        raise HTTPException(404, f"unknown loop {loop_id!r}: GET /api/v1/loops lists the loops")
+    return row

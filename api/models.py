@@ -1,0 +1,119 @@
+"""Response models of the REST API (contracts §5). Times are ISO 8601 UTC strings."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, Field
+
+State = Literal["ok", "warning", "fault", "unknown"]
+
+
+class LoopOut(BaseModel):
+    """A row of the loop-health table."""
+
+    id: str
+    type: str
+    source: str
+    description: str = ""
+    state: State
+    cause: str | None = Field(description="Cause of the current verdict (contracts §2).")
+    since: str | None = Field(description="When the current verdict began (ISO 8601 UTC).")
+    last_diagnosis_at: str | None
+    S: float | None = Field(description="Latest stiction estimate, % of valve travel.")
+    J: float | None = Field(description="Latest slip jump estimate, % of valve travel.")
+
+
+class LoopDetail(LoopOut):
+    """A loop and its latest diagnosis."""
+
+    diagnosis: dict[str, Any] | None = Field(
+        description="The latest diagnosis, the object of contracts §2 (null before the first)."
+    )
+    window_start: str | None = None
+    window_end: str | None = None
+
+
+class DiagnosisOut(BaseModel):
+    """One stored diagnosis."""
+
+    created_at: str
+    window_start: str
+    window_end: str
+    cause: str
+    state: State
+    diagnosis: dict[str, Any] = Field(description="The object of contracts §2.")
+
+
+class SampleOut(BaseModel):
+    """One stored sample (value null when its quality was Bad)."""
+
+    time: str = Field(description="Source timestamp, ISO 8601 UTC.")
+    signal: Literal["sp", "pv", "op", "mv", "mode"]
+    value: float | None
+    status: int = Field(description="OPC UA status code (0 = Good).")
+    received_at: str
+
+
+class ActionOut(BaseModel):
+    """A row of the suggested-action table."""
+
+    loop: str
+    cause: str
+    code: str
+    action: str = Field(description="What to do, for the operator.")
+    priority: int = Field(description="1 fault, 2 warning, 3 other.")
+    since: str
+
+
+class StictionPoint(BaseModel):
+    time: str
+    S: float = Field(description="% of valve travel.")
+    J: float | None
+    source: Literal["op_pv", "mv"] = Field(description="From OP/PV or from the stem position.")
+
+
+class WeekOut(BaseModel):
+    week_start: str
+    S_median: float
+    J_median: float | None
+    estimates: int
+
+
+class ValveReport(BaseModel):
+    """One valve's stiction history and trend (Theil–Sen; Bacci di Capaci & Scali 2014)."""
+
+    loop: str
+    limit: float = Field(description="S (% of travel) at which maintenance is due.")
+    current_S: float | None
+    current_J: float | None
+    slope_per_week: float | None = Field(description="Trend of S, % of travel per week.")
+    above_limit: bool
+    projected_crossing: str | None = Field(description="When S is projected to pass the limit.")
+    note: str
+    weeks: list[WeekOut]
+    estimates: list[StictionPoint]
+
+
+class StictionReport(BaseModel):
+    generated_at: str
+    start: str | None
+    end: str | None
+    valves: list[ValveReport]
+
+
+class Readiness(BaseModel):
+    ready: bool
+    storage: bool
+    scheduler: bool
+
+
+class Health(BaseModel):
+    status: Literal["ok"] = "ok"
+    version: str
+    uptime_s: float
+
+
+class DiagnoseNow(BaseModel):
+    loop: str
+    cause: str

@@ -1,0 +1,244 @@
+"""The ``/api/v1`` routes (contracts §5): loops, diagnoses, samples, actions, diagnose-now.
+
+Lists are JSON arrays; pagination is ``limit``/``offset`` with the total in the
+``X-Total-Count`` header and the next page in a ``Link: <...>; rel="next"`` header.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request, Response
+
+from plantcheck.api.deps import (
+    Backend,
+    TimeRange,
+    get_loop,
+    iso,
+    iso_required,
+    require_read_key,
+    require_write_key,
+)
+from plantcheck.api.models import (
+    ActionOut,
+    DiagnoseNow,
+    DiagnosisOut,
+    LoopDetail,
+    LoopOut,
+    SampleOut,
+    State,
+)
+from plantcheck.diagnosis.result import CAUSES
+from plantcheck.storage.results import (
+    LoopStatus,
+    active_actions,
+    diagnosis_history,
+    loop_statuses,
+)
+
+router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
+
+LoopId = Annotated[str, Path(description="Loop id as configured, e.g. FIC101.", max_length=64)]
+Offset = Annotated[int, Query(ge=0, le=10_000_000, description="Items to skip.")]
+Responses = dict[int | str, dict[str, Any]]
+NOT_FOUND: Responses = {404: {"description": "Unknown loop"}}
+UNAUTHORIZED: Responses = {401: {"description": "Missing or wrong X-API-Key header"}}
+Cause = Literal[CAUSES]  # type: ignore[valid-type]
+
+
+def paginate(
+    request: Request,
+    response: Response,
+    total: int | None,
+    limit: int,
+    offset: int,
+    more: bool = False,
+) -> None:
+    """Set ``X-Total-Count`` (when known) and, when more items follow, a ``Link`` to the
+    next page."""
+    if total is not None:
+        response.headers["X-Total-Count"] = str(total)
+        more = offset + limit < total
+    if more:
+        nxt = request.url.include_query_params(offset=offset + limit, limit=limit)
+        response.headers["Link"] = f'<{nxt}>; rel="next"'
+
+
+def _loop_out(s: LoopStatus) -> LoopOut:
+    return LoopOut(
+        id=s.id,
+        type=s.type,
+        source=s.source,
+        description=s.description,
+        state=s.state,
+        cause=s.cause,
+        since=iso(s.since_us),
+        last_diagnosis_at=iso(s.last_diagnosis_us),
+        S=s.S,
+        J=s.J,
+    )
+
+
+@router.get("/loops", response_model=list[LoopOut], responses=UNAUTHORIZED)
+async def list_loops(
+    backend: Backend,
+    request: Request,
+    response: Response,
+    state: Annotated[State | None, Query(description="Only loops in this state.")] = None,
+    cause: Annotated[Cause | None, Query(description="Only loops with this cause.")] = None,
+    loop_type: Annotated[
+        Literal["flow", "pressure", "level", "temperature", "composition", "other"] | None,
+        Query(alias="type", description="Only loops of this type."),
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=100_000, description="Most loops returned.")] = 10_000,
+    offset: Offset = 0,
+) -> list[LoopOut]:
+    """The loop-health table: every loop, its state, cause, since when, latest S and J."""
+    rows = [
+        r
+        for r in await loop_statuses(backend.store)
+        if (state is None or r.state == state)
+        and (cause is None or r.cause == cause)
+        and (loop_type is None or r.type == loop_type)
+    ]
+    paginate(request, response, len(rows), limit, offset)
+    return [_loop_out(r) for r in rows[offset : offset + limit]]
+
+
+@router.get("/loops/{loop_id}", response_model=LoopDetail, responses={**NOT_FOUND, **UNAUTHORIZED})
+async def get_loop_detail(backend: Backend, loop_id: LoopId) -> LoopDetail:
+    """The loop and its latest diagnosis (the object of contracts §2)."""
+    row = await get_loop(backend, loop_id)
+    status = (await loop_statuses(backend.store, loop_id))[0]
+    _, latest = await diagnosis_history(backend.store, row, limit=1)
+    d = latest[0] if latest else None
+    return LoopDetail(
+        **_loop_out(status).model_dump(),
+        diagnosis=d["payload"] if d else None,
+        window_start=iso(d["window_start_us"]) if d else None,
+        window_end=iso(d["window_end_us"]) if d else None,
+    )
+
+
+@router.get(
+    "/loops/{loop_id}/diagnoses",
+    response_model=list[DiagnosisOut],
+    responses={**NOT_FOUND, **UNAUTHORIZED},
+)
+async def list_diagnoses(
+    backend: Backend,
+    request: Request,
+    response: Response,
+    loop_id: LoopId,
+    times: Annotated[TimeRange, Depends()],
+    limit: Annotated[int, Query(ge=1, le=1000, description="Most diagnoses returned.")] = 100,
+    offset: Offset = 0,
+) -> list[DiagnosisOut]:
+    """Diagnosis history (window end in [from, to)), newest first."""
+    row = await get_loop(backend, loop_id)
+    total, items = await diagnosis_history(
+        backend.store, row, times.start_us, times.end_us, limit, offset
+    )
+    paginate(request, response, total, limit, offset)
+    return [
+        DiagnosisOut(
+            created_at=iso_required(d["created_us"]),
+            window_start=iso_required(d["window_start_us"]),
+            window_end=iso_required(d["window_end_us"]),
+            cause=d["cause"],
+            state=d["state"],
+            diagnosis=d["payload"],
+        )
+        for d in items
+    ]
+
+
+@router.get(
+    "/loops/{loop_id}/samples",
+    response_model=list[SampleOut],
+    responses={**NOT_FOUND, **UNAUTHORIZED},
+)
+async def list_samples(
+    backend: Backend,
+    request: Request,
+    response: Response,
+    loop_id: LoopId,
+    times: Annotated[TimeRange, Depends()],
+    signal: Annotated[
+        list[Literal["sp", "pv", "op", "mv", "mode"]] | None,
+        Query(description="Only these signals (repeat the parameter for several)."),
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=100_000, description="Most samples returned.")] = 10_000,
+    offset: Offset = 0,
+) -> list[SampleOut]:
+    """Stored samples in [from, to), oldest first; without ``from`` and ``to``, the last hour
+    up to the newest stored sample. A ``Link`` header points to the next page, if any."""
+    row = await get_loop(backend, loop_id)
+    store = backend.store
+    start, end = times.start_us, times.end_us
+    if start is None and end is None:
+        newest = await store.latest_sample_us(row)
+        if newest is not None:
+            start, end = newest - 3_600_000_000, newest + 1
+    rows = await store.read_samples(row, start, end, limit + offset + 1, signal)
+    paginate(request, response, None, limit, offset, more=len(rows) > limit + offset)
+    return [
+        SampleOut(
+            time=iso_required(ts),
+            signal=sig,
+            value=value,
+            status=status,
+            received_at=iso_required(recv),
+        )
+        for sig, ts, recv, value, status in rows[offset : offset + limit]
+    ]
+
+
+@router.get("/actions", response_model=list[ActionOut], responses=UNAUTHORIZED)
+async def list_actions(
+    backend: Backend,
+    request: Request,
+    response: Response,
+    loop: Annotated[
+        str | None, Query(description="Only this loop's action.", max_length=64)
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=100_000, description="Most actions returned.")] = 10_000,
+    offset: Offset = 0,
+) -> list[ActionOut]:
+    """The suggested-action table (open actions), most urgent first, then oldest first."""
+    rows = [a for a in await active_actions(backend.store) if loop is None or a["loop"] == loop]
+    paginate(request, response, len(rows), limit, offset)
+    return [
+        ActionOut(
+            loop=a["loop"],
+            cause=a["cause"],
+            code=a["code"],
+            action=a["text"],
+            priority=a["priority"],
+            since=iso_required(a["since_us"]),
+        )
+        for a in rows[offset : offset + limit]
+    ]
+
+
+@router.post(
+    "/loops/{loop_id}/diagnose",
+    response_model=DiagnoseNow,
+    dependencies=[Depends(require_write_key)],
+    responses={
+        **NOT_FOUND,
+        **UNAUTHORIZED,
+        403: {"description": "No API key configured"},
+        409: {"description": "The loop is not scheduled or its diagnosis failed"},
+    },
+)
+async def diagnose_now(backend: Backend, loop_id: LoopId) -> DiagnoseNow:
+    """Diagnose the loop now on its rolling window (the scheduler's job, run out of turn).
+    Needs the API key. Reads only from the store; nothing is written to the plant."""
+    await get_loop(backend, loop_id)
+    cause = await backend.diagnose_now(loop_id)
+    if cause is None:
+        raise HTTPException(
+            409, f"loop {loop_id!r} is not scheduled here or its diagnosis failed (see the log)"
+        )
+    return DiagnoseNow(loop=loop_id, cause=cause)

@@ -1,0 +1,101 @@
+"""The web page: loop-health table, loop detail (trends, PV(OP) plot), actions, stiction report.
+
+Server-rendered with Jinja2; plots drawn in the browser by the vendored uPlot (MIT, in
+``static/``) and a small canvas routine for the PV(OP) plot. No CDN: the page works on a plant
+network without internet access. Pages need the API key exactly when reads do.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import APIRouter, Depends, Request
+from fastapi.responses import HTMLResponse
+from fastapi.templating import Jinja2Templates
+
+from plantcheck import __version__
+from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
+from plantcheck.api.reports import build_report
+from plantcheck.storage.results import active_actions, diagnosis_history, loop_statuses
+
+HERE = Path(__file__).parent
+templates = Jinja2Templates(directory=HERE / "templates")
+templates.env.globals["version"] = __version__
+templates.env.filters["iso"] = iso
+
+router = APIRouter(dependencies=[Depends(require_read_key)], include_in_schema=False)
+
+MAX_POINTS = 2400
+"""Most points per trend sent to the browser (the window is decimated by striding)."""
+
+
+def _series(x: np.ndarray) -> list[float | None]:
+    return [None if not np.isfinite(v) else round(float(v), 4) for v in x]
+
+
+@router.get("/", response_class=HTMLResponse)
+async def health_page(request: Request, backend: Backend) -> HTMLResponse:
+    """The loop-health table, sortable, coloured by state."""
+    loops = await loop_statuses(backend.store)
+    counts: dict[str, int] = {}
+    for lp in loops:
+        counts[lp.state] = counts.get(lp.state, 0) + 1
+    return templates.TemplateResponse(
+        request, "index.html", {"loops": loops, "counts": counts, "title": "Loop health"}
+    )
+
+
+@router.get("/loop/{loop_id}", response_class=HTMLResponse)
+async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLResponse:
+    """One loop: state, latest diagnosis, SP/PV/OP(/MV) trends over its last window, PV(OP)."""
+    row = await get_loop(backend, loop_id)
+    status = (await loop_statuses(backend.store, loop_id))[0]
+    _, hist = await diagnosis_history(backend.store, row, limit=20)
+    latest = hist[0] if hist else None
+    if latest is not None:
+        start, end = latest["window_start_us"], latest["window_end_us"]
+    else:
+        newest = await backend.store.latest_sample_us(row)
+        end = (newest or 0) + 1
+        start = end - 3_600_000_000
+    win = await backend.store.read_window(row, start, end)
+    stride = max(1, int(np.ceil(win.t_us.size / MAX_POINTS)))
+    plot: dict[str, Any] = {"t": (win.t_us[::stride] / 1e6).round(3).tolist()}
+    for sig in ("sp", "pv", "op", "mv"):
+        if sig in win.signals:
+            plot[sig] = _series(win.values[sig][::stride])
+    return templates.TemplateResponse(
+        request,
+        "loop.html",
+        {
+            "loop": status,
+            "diagnosis": latest["payload"] if latest else None,
+            "history": hist,
+            "plot": plot,
+            "title": f"Loop {loop_id}",
+        },
+    )
+
+
+@router.get("/actions", response_class=HTMLResponse)
+async def actions_page(request: Request, backend: Backend) -> HTMLResponse:
+    """The suggested-action table."""
+    rows = await active_actions(backend.store)
+    return templates.TemplateResponse(
+        request, "actions.html", {"actions": rows, "title": "Suggested actions"}
+    )
+
+
+@router.get("/stiction", response_class=HTMLResponse)
+async def stiction_page(
+    request: Request, backend: Backend, times: Annotated[TimeRange, Depends()]
+) -> HTMLResponse:
+    """Each valve's S over time, its limit and the projection to the limit."""
+    report = await build_report(backend, times)
+    return templates.TemplateResponse(
+        request,
+        "stiction.html",
+        {"report": report.model_dump(), "title": "Valve stiction report"},
+    )

@@ -1,0 +1,236 @@
+"""``plantcheck run`` (the service) and ``plantcheck demo`` (simulator + service, one command)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+import uvicorn
+
+from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_store import ConfigOpt, _config
+from plantcheck.service.config import Config
+from plantcheck.storage.database import StorageError, upgrade
+from plantcheck.storage.results import loop_statuses
+from plantcheck.storage.store import Store
+
+log = logging.getLogger("plantcheck")
+
+
+def _check_port(host: str, port: int, what: str) -> None:
+    """Refuse early, with the fix, when the API port is taken."""
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host, port))
+        except OSError as exc:
+            raise fail(f"cannot listen on {host}:{port} ({exc.strerror}); {what}") from None
+
+
+async def _check_store(cfg: Config, hint: str) -> None:
+    try:
+        store = await Store.open(cfg.storage.url, config_hint=hint)
+    except StorageError as exc:
+        raise fail(str(exc)) from None
+    await store.close()
+
+
+def _serve(cfg: Config, hint: str, progress: float | None, duration: float | None) -> None:
+    from plantcheck.service.app import build_app
+
+    app = build_app(cfg, hint)
+    server = uvicorn.Server(
+        uvicorn.Config(app, host=cfg.api.host, port=cfg.api.port, log_level="warning")
+    )
+
+    async def report() -> None:
+        t0 = time.monotonic()
+        while not server.started:
+            await asyncio.sleep(0.1)
+        typer.echo(
+            f"plantcheck: serving http://{cfg.api.host}:{cfg.api.port}/ (API /api/v1, "
+            "docs /docs); Ctrl-C stops",
+            err=True,
+        )
+        while not server.should_exit:
+            await asyncio.sleep(progress or 3600)
+            backend = getattr(app.state, "backend", None)
+            if progress and backend is not None:
+                rows = await loop_statuses(backend.store)
+                done = [r for r in rows if r.cause is not None]
+                parts = ", ".join(
+                    f"{r.id} {r.cause}" + (f" S={r.S:.1f}%" if r.S is not None else "")
+                    for r in done
+                )
+                typer.echo(
+                    f"[{time.monotonic() - t0:5.0f} s] {len(done)}/{len(rows)} loops diagnosed"
+                    + (f": {parts}" if parts else ""),
+                    err=True,
+                )
+            if duration is not None and time.monotonic() - t0 >= duration:
+                server.should_exit = True
+
+    async def main() -> None:
+        task = asyncio.create_task(report())
+        try:
+            await server.serve()
+        finally:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+
+    asyncio.run(main())
+
+
+def run_cmd(
+    config: ConfigOpt = None,
+    host: Annotated[str | None, typer.Option(help="Listen address (default [api] host).")] = None,
+    port: Annotated[
+        int | None, typer.Option(min=1, max=65535, help="Listen port (default [api] port).")
+    ] = None,
+    migrate: Annotated[
+        bool, typer.Option("--migrate", help="Create or upgrade the database schema first.")
+    ] = False,
+) -> None:
+    """Run the service: ingest the configured sources, diagnose every loop on its rolling
+    window, serve the REST API and the web page (one process; one per database)."""
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s %(message)s")
+    cfg = _config(config)
+    api = cfg.api.model_copy(update={k: v for k, v in (("host", host), ("port", port)) if v})
+    cfg = cfg.model_copy(update={"api": api})
+    hint = f" --config {config}" if config else ""
+    if migrate:
+        upgrade(cfg.storage.url)
+    asyncio.run(_check_store(cfg, hint))
+    _check_port(cfg.api.host, cfg.api.port, "set [api] port in the configuration or use --port")
+    _serve(cfg, hint, None, None)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def demo_config(data_dir: Path, port: int, opcua_url: str, speed: float) -> str:
+    """The service configuration of the demo: the default plant over OPC UA, SQLite in
+    ``data_dir``, 1-hour windows (simulated time) diagnosed every 10 s."""
+    from plantcheck.simulator.export import map_toml
+    from plantcheck.simulator.scenario import load_scenario
+
+    sc = load_scenario(None)
+    sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"url": opcua_url})})
+    sampling = sc.clock.sample_time_s / speed
+    tables = map_toml(sc, protocol="opcua").replace(
+        'protocol = "opcua"\n', f'protocol = "opcua"\npoll_interval_s = {sampling:g}\n', 1
+    )
+    return "\n".join(
+        [
+            "# written by `plantcheck demo`: the bundled simulator over OPC UA at "
+            f"{speed:g}x real time",
+            "[storage]",
+            f'url = "sqlite+aiosqlite:///{data_dir / "demo.db"}"',
+            f'buffer_path = "{data_dir / "demo-buffer.db"}"',
+            "",
+            "[api]",
+            'host = "127.0.0.1"',
+            f"port = {port}",
+            "",
+            "[scheduler]",
+            "window_s = 3600",
+            "period_s = 10",
+            "",
+            tables,
+        ]
+    )
+
+
+def demo_cmd(
+    port: Annotated[int, typer.Option(min=1, max=65535, help="Web page and API port.")] = 8000,
+    speed: Annotated[
+        float, typer.Option(min=10, max=400, help="Simulated seconds per wall second.")
+    ] = 100.0,
+    data_dir: Annotated[
+        Path | None,
+        typer.Option(help="Keep the demo's configuration and database here (default: temporary)."),
+    ] = None,
+    duration: Annotated[
+        float | None, typer.Option(help="Stop after this many seconds (default: at Ctrl-C).")
+    ] = None,
+) -> None:
+    """Demo: the bundled 8-loop plant simulated at high speed, ingested over OPC UA and
+    diagnosed by the service on SQLite; open http://127.0.0.1:PORT/ (every loop shows its
+    cause within about 2 minutes)."""
+    from plantcheck.service.config import load_config
+
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(message)s")
+    _check_port("127.0.0.1", port, "choose another with --port")
+    with contextlib.ExitStack() as stack:
+        if data_dir is None:
+            data_dir = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="plantcheck-")))
+        data_dir.mkdir(parents=True, exist_ok=True)
+        for old in data_dir.glob("demo*.db*"):
+            old.unlink()
+        opcua_port = _free_port()
+        opcua_url = f"opc.tcp://127.0.0.1:{opcua_port}/plantcheck/"
+        cfg_path = data_dir / "plantcheck.toml"
+        cfg_path.write_text(demo_config(data_dir, port, opcua_url, speed), encoding="utf-8")
+        cfg = load_config(cfg_path)
+        upgrade(cfg.storage.url)
+        sim = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "plantcheck.service.cli",
+                "simulate",
+                "--opcua",
+                opcua_url,
+                "--modbus",
+                "off",
+                "--admin",
+                "off",
+                "--speed",
+                f"{speed:g}",
+                "--quiet",
+            ],
+            stdout=subprocess.DEVNULL,
+        )
+        stack.callback(_stop_process, sim)
+        _wait_for_port(sim, opcua_port)
+        typer.echo(
+            f"plantcheck demo: simulator at {speed:g}x on {opcua_url}; configuration "
+            f"{cfg_path}; open http://127.0.0.1:{port}/",
+            err=True,
+        )
+        _serve(cfg, f" --config {cfg_path}", 10.0, duration)
+
+
+def _wait_for_port(proc: subprocess.Popen[bytes], port: int, timeout_s: float = 60.0) -> None:
+    """Wait until the simulator accepts connections (it exits: fail with its reason)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise fail(f"the simulator exited with status {proc.returncode} (see above)")
+        with socket.socket() as s:
+            s.settimeout(0.5)
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.2)
+    raise fail(f"the simulator did not open its OPC UA port {port} within {timeout_s:g} s")
+
+
+def _stop_process(p: subprocess.Popen[bytes]) -> None:
+    p.terminate()
+    try:
+        p.wait(10)
+    except subprocess.TimeoutExpired:
+        p.kill()

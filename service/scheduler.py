@@ -1,0 +1,228 @@
+"""Rolling-window diagnosis of every loop (APScheduler 3.11 ``AsyncIOScheduler``).
+
+Each loop gets an interval job (its ``period_s``, default 10 min) that reads the loop's last
+``window_s`` seconds (default 2 h) from the store, runs the diagnosis chain in a worker process
+(``ProcessPoolExecutor``: the event loop that ingests and serves never blocks on numpy) and
+stores the diagnosis, its suggested action and any stiction estimate. A loop's verdict (state,
+cause, ``since``) changes only when ``confirm`` consecutive diagnoses (default 2) find the same
+new cause, so one odd window does not flip the health table; every diagnosis is kept in the
+history whatever its cause.
+
+The window ends at the loop's newest stored sample (source time), so a plant whose clock runs
+ahead of or behind this server, or an accelerated simulator, is judged on its own time base; when
+the newest sample is older than a whole window, the window ends now and the chain reports the
+missing data. One scheduler per deployment: two ``plantcheck run`` processes on one database
+would diagnose every loop twice.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import multiprocessing
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+from apscheduler.schedulers.asyncio import AsyncIOScheduler
+
+from plantcheck.diagnosis.result import action_for, priority_of, state_of
+from plantcheck.service.metrics import ServiceMetrics
+from plantcheck.service.window_diagnosis import diagnose_window
+from plantcheck.storage.results import Verdict, count_loops_by_state, record_verdict
+from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.window import HELD
+
+log = logging.getLogger("plantcheck.scheduler")
+
+
+@dataclass(frozen=True)
+class LoopSchedule:
+    """When and over what window one loop is diagnosed (seconds)."""
+
+    name: str
+    loop_type: str
+    window_s: float
+    period_s: float
+    hold: tuple[str, ...] = HELD
+    """Signals that keep their value between samples (all of them for OPC UA sources, which
+    report changes only; SP and mode otherwise)."""
+
+
+@dataclass
+class LoopJobState:
+    """Last outcome of a loop's job (for logging failures once and ``/readyz``)."""
+
+    runs: int = 0
+    failing: bool = False
+    last_cause: str | None = None
+    streak: int = 0
+    """Consecutive diagnoses that found ``last_cause``."""
+    streak_since_us: int = 0
+
+
+def _now_us() -> int:
+    return time.time_ns() // 1000
+
+
+def _warm() -> None:
+    """Imported in each worker at start, so the first diagnosis does not pay for imports."""
+
+
+class DiagnosisScheduler:
+    """Owns the APScheduler instance and the worker pool of one service."""
+
+    def __init__(
+        self,
+        store: Store,
+        schedules: list[LoopSchedule],
+        workers: int = 2,
+        metrics: ServiceMetrics | None = None,
+        first_run_within_s: float = 30.0,
+        confirm: int = 2,
+    ) -> None:
+        self.store = store
+        self.schedules = {s.name: s for s in schedules}
+        self.workers = workers
+        self.metrics = metrics or ServiceMetrics()
+        self.first_run_within_s = first_run_within_s
+        self.confirm = confirm
+        self.state = {s.name: LoopJobState() for s in schedules}
+        self._scheduler: Any = None
+        self._pool: ProcessPoolExecutor | None = None
+        self._slots = asyncio.Semaphore(workers)
+        self._loops: dict[str, LoopRow] = {}
+
+    @property
+    def running(self) -> bool:
+        return self._scheduler is not None and bool(self._scheduler.running)
+
+    async def start(self) -> None:
+        """Start the worker pool and one interval job per loop, first runs spread over
+        ``first_run_within_s`` (or the period, when shorter)."""
+        self._loops = await self.store.loops()
+        ctx = multiprocessing.get_context("spawn")
+        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+        loop = asyncio.get_running_loop()
+        await asyncio.gather(
+            *(loop.run_in_executor(self._pool, _warm) for _ in range(self.workers))
+        )
+        self._scheduler = AsyncIOScheduler(timezone="UTC")
+        n = max(1, len(self.schedules))
+        now = time.time()
+        for i, s in enumerate(self.schedules.values()):
+            first = now + 1.0 + min(self.first_run_within_s, s.period_s) * i / n
+            self._scheduler.add_job(
+                self.run_loop,
+                "interval",
+                seconds=s.period_s,
+                args=[s.name],
+                id=s.name,
+                next_run_time=datetime.fromtimestamp(first, UTC),
+                max_instances=1,
+                coalesce=True,
+                misfire_grace_time=max(1, int(s.period_s)),
+            )
+        self._scheduler.start()
+        log.info("diagnosis scheduled for %d loops on %d workers", n, self.workers)
+
+    async def stop(self) -> None:
+        if self._scheduler is not None and self._scheduler.running:
+            self._scheduler.shutdown(wait=False)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    async def run_loop(self, name: str) -> str | None:
+        """Diagnose loop ``name`` now; returns its cause (None when the job failed)."""
+        sched = self.schedules[name]
+        st = self.state[name]
+        t0 = time.perf_counter()
+        try:
+            async with self._slots:
+                cause = await self._diagnose(sched)
+        except Exception as exc:
+            self.metrics.diagnoses.labels("failed").inc()
+            if not st.failing:
+                log.warning("diagnosis of %s failed: %s (logged once until it recovers)", name, exc)
+            st.failing = True
+            return None
+        if st.failing:
+            log.info("diagnosis of %s recovered", name)
+        st.failing = False
+        self.metrics.diagnoses.labels("done").inc()
+        self.metrics.diagnosis_duration.observe(time.perf_counter() - t0)
+        return cause
+
+    async def _diagnose(self, sched: LoopSchedule) -> str:
+        row = self._loops.get(sched.name)
+        if row is None or "pv" not in row.tags:
+            self._loops = await self.store.loops()
+            row = self._loops[sched.name]
+        now_us = _now_us()
+        window_us = int(sched.window_s * 1e6)
+        span = await self.store.sample_span_us(row, "pv")
+        notes: list[str] = []
+        if span is None or span[1] < now_us - window_us:
+            end_us = now_us
+            start_us = end_us - window_us
+            notes.append(
+                "no PV sample stored in the last window: check the source and its connection"
+                if span is not None
+                else "no PV sample stored yet"
+            )
+        else:
+            end_us = span[1] + 1
+            start_us = max(end_us - window_us, span[0])
+            if start_us > end_us - window_us:
+                notes.append(
+                    f"window shortened to the {(end_us - start_us) / 1e6:.0f} s of data stored "
+                    f"so far (configured {sched.window_s:g} s)"
+                )
+        win = await self.store.read_window(row, start_us, end_us, hold=sched.hold)
+        values = {k: v for k, v in win.values.items() if k in win.signals or k in ("pv", "op")}
+        assert self._pool is not None, "scheduler not started"
+        payload = await asyncio.get_running_loop().run_in_executor(
+            self._pool, diagnose_window, values, win.sample_time_s, sched.loop_type, notes
+        )
+        await self._store(row, payload, start_us, end_us, now_us)
+        return str(payload["cause"])
+
+    async def _store(
+        self, row: LoopRow, payload: dict[str, Any], start_us: int, end_us: int, now_us: int
+    ) -> None:
+        cause = str(payload["cause"])
+        stiction = payload.get("stiction") or {}
+        S = stiction.get("S") if cause in ("stiction", "deadband_backlash") else None
+        J = stiction.get("J") if S is not None else None
+        valve = payload.get("valve") or {}
+        action = (payload.get("actions") or [action_for(cause, S, J)])[0]
+        verdict = Verdict(
+            loop=row,
+            created_us=now_us,
+            window_start_us=start_us,
+            window_end_us=end_us,
+            cause=cause,
+            state=state_of(cause),
+            payload=payload,
+            action_code=action["code"],
+            action_text=action["text"],
+            priority=priority_of(cause),
+            S=None if S is None else float(S),
+            J=None if J is None else float(J),
+            stiction_source="mv"
+            if valve.get("state") in ("stiction", "deadband_backlash")
+            else "op_pv",
+        )
+        st = self.state[row.name]
+        st.runs += 1
+        if cause == st.last_cause:
+            st.streak += 1
+        else:
+            st.last_cause, st.streak, st.streak_since_us = cause, 1, now_us
+        adopt = st.streak >= self.confirm
+        if await record_verdict(self.store, verdict, adopt, st.streak_since_us):
+            log.info("%s: %s (%s)", row.name, cause, verdict.state)
+            self.metrics.set_loop_states(await count_loops_by_state(self.store))

@@ -1,0 +1,55 @@
+"""Diagnose one stored loop window: the function the scheduler's worker pool runs.
+
+Takes plain numpy arrays (picklable, no database handle) and returns the contracts §2 object,
+so it runs in a worker process while the event loop keeps ingesting and serving.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from plantcheck.diagnosis import diagnose, diagnose_advanced
+
+FloatArray = NDArray[np.float64]
+
+MIN_MV_COVERAGE = 0.5
+"""Fewest finite MV samples (fraction of the window) for the advanced chain to run."""
+
+
+def automatic(mode: FloatArray | None) -> NDArray[np.bool_] | None:
+    """Automatic-mode mask from a stored mode signal (contracts §1: 1 = automatic).
+
+    Unknown mode (NaN, no mode tag) counts as automatic: the window checks then judge the data.
+    """
+    if mode is None or not np.isfinite(mode).any():
+        return None
+    return np.asarray(~np.isfinite(mode) | (np.rint(mode) == 1.0))
+
+
+def diagnose_window(
+    values: dict[str, FloatArray],
+    sample_time_s: float,
+    loop_type: str,
+    notes: list[str] | None = None,
+) -> dict[str, Any]:
+    """The diagnosis (contracts §2 JSON object) of one aligned window.
+
+    ``values`` holds ``pv``, ``op`` and optionally ``sp``, ``mv``, ``mode`` on one grid of
+    ``sample_time_s`` seconds (missing samples NaN). The advanced chain runs when MV was stored
+    for at least half the window (Bacci di Capaci 2016, §2.7), the standard chain otherwise.
+    """
+    pv, op = values["pv"], values["op"]
+    sp = values.get("sp")
+    if sp is not None and not np.isfinite(sp).any():
+        sp = None
+    auto = automatic(values.get("mode"))
+    mv = values.get("mv")
+    if mv is not None and mv.size and np.isfinite(mv).mean() >= MIN_MV_COVERAGE:
+        d = diagnose_advanced(pv, op, mv, sample_time_s, sp=sp, auto=auto, loop_type=loop_type)
+    else:
+        d = diagnose(pv, op, sample_time_s, sp=sp, auto=auto, loop_type=loop_type)
+    d.notes = (notes or []) + d.notes
+    return d.to_dict()

@@ -1,0 +1,247 @@
+"""Diagnosis results in the store: write one verdict, read the tables the API serves.
+
+A loop's state, cause and ``since`` change only when the verdict (its cause) changes; the
+suggested action of the previous verdict is then closed and the new one opened. Times are µs
+since 1970-01-01 UTC, as everywhere in the store.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import and_, func, insert, select, update
+from sqlalchemy.ext.asyncio import AsyncConnection
+from sqlalchemy.sql.elements import ColumnElement
+
+from plantcheck.storage.schema import actions, diagnoses, loops, stiction_estimates
+from plantcheck.storage.store import LoopRow, Store
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the scheduler stores for one diagnosed window."""
+
+    loop: LoopRow
+    created_us: int
+    window_start_us: int
+    window_end_us: int
+    cause: str
+    state: str
+    payload: dict[str, Any]
+    action_code: str
+    action_text: str
+    priority: int
+    S: float | None = None
+    J: float | None = None
+    stiction_source: str = "op_pv"
+
+
+@dataclass(frozen=True)
+class LoopStatus:
+    """A row of the loop-health table."""
+
+    id: str
+    type: str
+    source: str
+    description: str
+    state: str
+    cause: str | None
+    since_us: int | None
+    last_diagnosis_us: int | None
+    S: float | None
+    J: float | None
+
+
+async def record_verdict(
+    store: Store, v: Verdict, adopt: bool = True, since_us: int | None = None
+) -> bool:
+    """Store a diagnosis; when ``adopt`` (or the loop has no verdict yet) and its cause differs
+    from the loop's, the loop takes it as its verdict from ``since_us`` (default: now).
+    Returns whether the loop's verdict changed."""
+    async with store.engine.begin() as conn:
+        cur = (
+            await conn.execute(select(loops.c.cause).where(loops.c.id == v.loop.id))
+        ).scalar_one_or_none()
+        await conn.execute(
+            insert(diagnoses).values(
+                loop_id=v.loop.id,
+                created_us=v.created_us,
+                window_start_us=v.window_start_us,
+                window_end_us=v.window_end_us,
+                cause=v.cause,
+                state=v.state,
+                payload=v.payload,
+            )
+        )
+        changed = cur != v.cause and (adopt or cur is None)
+        values: dict[str, Any] = {"last_diagnosis_us": v.created_us}
+        if changed:
+            values.update(state=v.state, cause=v.cause, since_us=since_us or v.created_us)
+        await conn.execute(update(loops).where(loops.c.id == v.loop.id).values(**values))
+        await _update_action(conn, v, changed)
+        if v.S is not None:
+            await conn.execute(
+                insert(stiction_estimates).values(
+                    loop_id=v.loop.id, at_us=v.window_end_us, S=v.S, J=v.J, source=v.stiction_source
+                )
+            )
+    return changed
+
+
+async def _update_action(conn: AsyncConnection, v: Verdict, changed: bool) -> None:
+    active = and_(actions.c.loop_id == v.loop.id, actions.c.active.is_(True))
+    current = and_(active, actions.c.cause == v.cause)
+    if changed:
+        await conn.execute(
+            update(actions).where(active).values(active=False, closed_us=v.created_us)
+        )
+        if v.action_code != "none":
+            await conn.execute(
+                insert(actions).values(
+                    loop_id=v.loop.id,
+                    cause=v.cause,
+                    code=v.action_code,
+                    text=v.action_text,
+                    priority=v.priority,
+                    since_us=v.created_us,
+                    active=True,
+                )
+            )
+    else:
+        # same verdict: keep the action and its ``since``, refresh its text (e.g. a new S)
+        await conn.execute(update(actions).where(current).values(text=v.action_text))
+
+
+async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatus]:
+    """The loop-health table (one loop with ``name``), with each valve's latest S and J."""
+    latest = (
+        select(
+            stiction_estimates.c.loop_id,
+            func.max(stiction_estimates.c.at_us).label("at_us"),
+        )
+        .group_by(stiction_estimates.c.loop_id)
+        .subquery()
+    )
+    est = (
+        select(stiction_estimates.c.loop_id, stiction_estimates.c.S, stiction_estimates.c.J)
+        .join(
+            latest,
+            and_(
+                latest.c.loop_id == stiction_estimates.c.loop_id,
+                latest.c.at_us == stiction_estimates.c.at_us,
+            ),
+        )
+        .subquery()
+    )
+    q = select(loops, est.c.S, est.c.J).outerjoin(est, est.c.loop_id == loops.c.id)
+    if name is not None:
+        q = q.where(loops.c.name == name)
+    async with store.engine.connect() as conn:
+        rows = (await conn.execute(q.order_by(loops.c.name))).all()
+    seen: set[str] = set()
+    out = []
+    for r in rows:
+        if r.name in seen:  # two estimates with the same time: keep one
+            continue
+        seen.add(r.name)
+        out.append(
+            LoopStatus(
+                r.name,
+                r.type,
+                r.source,
+                r.description,
+                r.state,
+                r.cause,
+                r.since_us,
+                r.last_diagnosis_us,
+                r.S,
+                r.J,
+            )
+        )
+    return out
+
+
+def _between(col: Any, start_us: int | None, end_us: int | None) -> list[ColumnElement[bool]]:
+    cond: list[ColumnElement[bool]] = []
+    if start_us is not None:
+        cond.append(col >= start_us)
+    if end_us is not None:
+        cond.append(col < end_us)
+    return cond
+
+
+async def diagnosis_history(
+    store: Store,
+    loop: LoopRow,
+    start_us: int | None = None,
+    end_us: int | None = None,
+    limit: int = 100,
+    offset: int = 0,
+) -> tuple[int, list[dict[str, Any]]]:
+    """(total, page) of a loop's diagnoses whose window ends in [start, end), newest first;
+    each item has ``created_us``, ``window_start_us``, ``window_end_us`` and ``payload``."""
+    cond = [diagnoses.c.loop_id == loop.id, *_between(diagnoses.c.window_end_us, start_us, end_us)]
+    q = (
+        select(diagnoses)
+        .where(*cond)
+        .order_by(diagnoses.c.window_end_us.desc(), diagnoses.c.id.desc())
+        .limit(limit)
+        .offset(offset)
+    )
+    async with store.engine.connect() as conn:
+        total = int(
+            (
+                await conn.execute(select(func.count()).select_from(diagnoses).where(*cond))
+            ).scalar_one()
+        )
+        rows = (await conn.execute(q)).all()
+    return total, [r._asdict() for r in rows]
+
+
+async def active_actions(store: Store) -> list[dict[str, Any]]:
+    """The suggested-action table: active actions by priority, then oldest first."""
+    q = (
+        select(actions, loops.c.name.label("loop"))
+        .join(loops, loops.c.id == actions.c.loop_id)
+        .where(actions.c.active.is_(True))
+        .order_by(actions.c.priority, actions.c.since_us, loops.c.name)
+    )
+    async with store.engine.connect() as conn:
+        return [r._asdict() for r in (await conn.execute(q)).all()]
+
+
+async def stiction_history(
+    store: Store, start_us: int | None = None, end_us: int | None = None
+) -> dict[str, list[tuple[int, float, float | None, str]]]:
+    """Per loop name: (at_us, S, J, source) of its stiction estimates, oldest first."""
+    q = (
+        select(
+            loops.c.name,
+            stiction_estimates.c.at_us,
+            stiction_estimates.c.S,
+            stiction_estimates.c.J,
+            stiction_estimates.c.source,
+        )
+        .join(loops, loops.c.id == stiction_estimates.c.loop_id)
+        .where(*_between(stiction_estimates.c.at_us, start_us, end_us))
+        .order_by(loops.c.name, stiction_estimates.c.at_us)
+    )
+    out: dict[str, list[tuple[int, float, float | None, str]]] = {}
+    async with store.engine.connect() as conn:
+        for r in (await conn.execute(q)).all():
+            out.setdefault(r.name, []).append((r.at_us, r.S, r.J, r.source))
+    return out
+
+
+async def count_loops_by_state(store: Store) -> dict[str, int]:
+    """Number of loops in each state."""
+    q = select(loops.c.state, func.count()).group_by(loops.c.state)
+    async with store.engine.connect() as conn:
+        return {r[0]: int(r[1]) for r in (await conn.execute(q)).all()}
+
+
+def page(items: Sequence[Any], limit: int, offset: int) -> list[Any]:
+    """One page of an in-memory list."""
+    return list(items[offset : offset + limit])

@@ -1,0 +1,145 @@
+"""A real ``plantcheck run`` process over a SQLite store filled with simulated loop records."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import httpx
+from helpers import free_port
+
+from plantcheck.simulator.export import map_toml, write_records
+from plantcheck.simulator.scenario import load_scenario
+
+CLI = [sys.executable, "-m", "plantcheck.service.cli"]
+API_KEY = "test-key-123"
+
+
+@dataclass
+class Service:
+    """A running service: its base URL, process, configuration file and the loops' truth."""
+
+    url: str
+    proc: subprocess.Popen[bytes]
+    config: Path
+    truth: dict[str, dict[str, object]]
+    start: datetime
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
+def write_config(folder: Path, *, port: int, reads_need_key: bool = False) -> Path:
+    """Configuration: SQLite in ``folder``, the default plant's loops on an OPC UA source
+    nobody serves (the records were imported), 1-hour windows diagnosed every 3 s."""
+    sc = load_scenario(None)
+    sc = sc.model_copy(
+        update={
+            "opcua": sc.opcua.model_copy(update={"url": f"opc.tcp://127.0.0.1:{free_port()}/none/"})
+        }
+    )
+    text = "\n".join(
+        [
+            "[storage]",
+            f'url = "sqlite+aiosqlite:///{folder / "plant.db"}"',
+            f'buffer_path = "{folder / "buffer.db"}"',
+            "[api]",
+            f"port = {port}",
+            f'api_key = "{API_KEY}"',
+            f"require_key_for_reads = {'true' if reads_need_key else 'false'}",
+            "[scheduler]",
+            "window_s = 3600",
+            "period_s = 3",
+            "workers = 2",
+            "confirm = 1",
+            "",
+            map_toml(sc, protocol="opcua"),
+        ]
+    )
+    path = folder / f"plantcheck-{port}.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def record_start(duration_s: float = 3600.0) -> datetime:
+    """Where the imported records start: so that they end about now, as live data would
+    (older data is outside the rolling window, or even the retention)."""
+    now = datetime.now(UTC).replace(second=0, microsecond=0)
+    return now - timedelta(seconds=duration_s)
+
+
+def fill_store(
+    folder: Path, config: Path, duration_s: float = 3600.0
+) -> tuple[datetime, dict[str, dict[str, object]]]:
+    """Simulate the default plant, import every loop's record; returns where the records
+    start and the truth per loop."""
+    sc = load_scenario(None)
+    start = record_start(duration_s)
+    records = folder / "records"
+    write_records(sc, records, duration_s, start)
+    subprocess.run(
+        [*CLI, "db", "upgrade", "--config", str(config)], check=True, capture_output=True
+    )
+    truth: dict[str, dict[str, object]] = {}
+    for spec in sc.loop:
+        t = json.loads((records / f"{spec.id}.json").read_text())
+        truth[spec.id] = t
+        subprocess.run(
+            [
+                *CLI,
+                "import",
+                str(records / f"{spec.id}.csv"),
+                "--loop",
+                spec.id,
+                "--loop-type",
+                spec.type,
+                "--config",
+                str(config),
+            ],
+            check=True,
+            capture_output=True,
+        )
+    return start, truth
+
+
+def start_service(
+    config: Path, port: int, truth: dict[str, dict[str, object]], start: datetime
+) -> Service:
+    """``plantcheck run --config`` in a new process; returns once /readyz answers 200."""
+    proc = subprocess.Popen([*CLI, "run", "--config", str(config)], stderr=subprocess.DEVNULL)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"plantcheck run exited with {proc.returncode}")
+        try:
+            if httpx.get(f"{url}/readyz", timeout=2).status_code == 200:
+                return Service(url, proc, config, truth, start)
+        except httpx.TransportError:
+            pass
+        time.sleep(0.3)
+    proc.kill()
+    raise RuntimeError("plantcheck run did not become ready within 60 s")
+
+
+def wait_diagnosed(
+    url: str, n: int, timeout_s: float = 120.0, headers: dict[str, str] | None = None
+) -> list[dict[str, object]]:
+    """Poll GET /api/v1/loops until ``n`` loops have a cause."""
+    deadline = time.monotonic() + timeout_s
+    loops: list[dict[str, object]] = []
+    while time.monotonic() < deadline:
+        loops = httpx.get(f"{url}/api/v1/loops", headers=headers, timeout=10).json()
+        if sum(lp["cause"] is not None for lp in loops) >= n:
+            return loops
+        time.sleep(1)
+    raise AssertionError(f"only {sum(lp['cause'] is not None for lp in loops)} of {n} diagnosed")

@@ -1,0 +1,264 @@
+"""The service end to end over real parts: ``plantcheck run`` (a new process) on a SQLite store
+filled with simulated loop records, its scheduler, the REST API over HTTP, the web page in
+headless Chromium."""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Iterator
+from datetime import timedelta
+from pathlib import Path
+
+import httpx
+import pytest
+from helpers import RunCli, free_port
+from servicehelpers import (
+    API_KEY,
+    Service,
+    fill_store,
+    start_service,
+    wait_diagnosed,
+    write_config,
+)
+
+
+@pytest.fixture(scope="module")
+def service() -> Iterator[Service]:
+    """One running service over 1 h of the default plant (8 loops), every loop diagnosed."""
+    with tempfile.TemporaryDirectory(prefix="plantcheck-svc-") as d:
+        folder = Path(d)
+        port = free_port()
+        config = write_config(folder, port=port)
+        start, truth = fill_store(folder, config)
+        svc = start_service(config, port, truth, start)
+        try:
+            wait_diagnosed(svc.url, len(truth))
+            yield svc
+        finally:
+            svc.stop()
+
+
+def test_every_loop_gets_its_true_cause(service: Service) -> None:
+    loops = {lp["id"]: lp for lp in httpx.get(f"{service.url}/api/v1/loops").json()}
+    assert set(loops) == set(service.truth)
+    for name, truth in service.truth.items():
+        lp = loops[name]
+        assert lp["cause"] == truth["cause"], (name, lp)
+        assert lp["since"].endswith("Z") and lp["last_diagnosis_at"].endswith("Z")
+        if truth["S"] is not None:  # sticky valves: S estimated within 1 % of travel
+            assert lp["S"] is not None and abs(lp["S"] - truth["S"]) < 1.0, (name, lp)
+    states = {lp["id"]: lp["state"] for lp in loops.values()}
+    assert states["FIC101"] == "ok" and states["FIC102"] == "fault"
+    assert states["TIC401"] == "warning"
+
+
+def test_loop_detail_and_history(service: Service) -> None:
+    d = httpx.get(f"{service.url}/api/v1/loops/FIC102").json()
+    assert d["diagnosis"]["schema"] == "plantcheck.diagnosis/1"
+    assert d["diagnosis"]["cause"] == "stiction"
+    r = httpx.get(f"{service.url}/api/v1/loops/FIC102/diagnoses", params={"limit": 1})
+    assert r.status_code == 200 and len(r.json()) == 1
+    assert int(r.headers["X-Total-Count"]) >= 1
+    if int(r.headers["X-Total-Count"]) > 1:
+        assert 'rel="next"' in r.headers["Link"]
+    old = httpx.get(
+        f"{service.url}/api/v1/loops/FIC102/diagnoses", params={"to": "2000-01-01T00:00:00Z"}
+    )
+    assert old.status_code == 200 and old.json() == []
+
+
+def test_samples_in_a_time_range(service: Service) -> None:
+    t0 = service.start + timedelta(minutes=10)
+    r = httpx.get(
+        f"{service.url}/api/v1/loops/FIC101/samples",
+        params={
+            "from": t0.isoformat(),
+            "to": (t0 + timedelta(minutes=1)).replace(tzinfo=None).isoformat(),  # no zone: UTC
+            "signal": "pv",
+        },
+    )
+    assert r.status_code == 200
+    rows = r.json()
+    assert len(rows) == 60
+    assert rows[0]["time"] == t0.strftime("%Y-%m-%dT%H:%M:%S.000Z") and rows[0]["signal"] == "pv"
+    assert all(isinstance(x["value"], float) for x in rows)
+
+
+def test_actions_and_stiction_report(service: Service) -> None:
+    acts = httpx.get(f"{service.url}/api/v1/actions").json()
+    by_loop = {a["loop"]: a for a in acts}
+    assert by_loop["FIC102"]["code"] == "valve_maintenance" and by_loop["FIC102"]["priority"] == 1
+    assert "FIC101" not in by_loop  # healthy: no action
+    assert [a["priority"] for a in acts] == sorted(a["priority"] for a in acts)
+    rep = httpx.get(f"{service.url}/api/v1/reports/stiction").json()
+    valves = {v["loop"]: v for v in rep["valves"]}
+    assert {"FIC102", "LIC201"} <= set(valves)
+    assert valves["FIC102"]["limit"] == 2.0 and valves["FIC102"]["above_limit"] is True
+    assert valves["FIC102"]["estimates"][0]["source"] == "op_pv"
+    text = httpx.get(f"{service.url}/api/v1/reports/stiction", params={"format": "csv"}).text
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert rows and {r["loop"] for r in rows} >= {"FIC102", "LIC201"}
+
+
+def test_probes_and_metrics(service: Service) -> None:
+    assert httpx.get(f"{service.url}/healthz").json()["status"] == "ok"
+    ready = httpx.get(f"{service.url}/readyz").json()
+    assert ready == {"ready": True, "storage": True, "scheduler": True}
+    text = httpx.get(f"{service.url}/metrics").text
+    for name in (
+        "plantcheck_samples_per_second",
+        "plantcheck_buffer_depth",
+        "plantcheck_diagnosis_duration_seconds_count",
+        'plantcheck_loops{state="fault"}',
+    ):
+        assert name in text
+    assert re.search(r'plantcheck_loops\{state="fault"\} [1-9]', text)
+
+
+@pytest.mark.parametrize(
+    ("path", "params", "param"),
+    [
+        ("/api/v1/loops", {"limit": "0"}, "limit"),
+        ("/api/v1/loops", {"state": "broken"}, "state"),
+        ("/api/v1/loops", {"offset": "-1"}, "offset"),
+        ("/api/v1/loops/FIC101/diagnoses", {"from": "yesterday"}, "from"),
+        ("/api/v1/loops/FIC101/samples", {"signal": "xx"}, "signal"),
+        ("/api/v1/reports/stiction", {"format": "xml"}, "format"),
+        (
+            "/api/v1/loops/FIC101/diagnoses",
+            {"from": "2026-03-03T00:00:00Z", "to": "2026-03-02T00:00:00Z"},
+            "from",
+        ),
+    ],
+)
+def test_bad_query_parameters_are_422_naming_the_parameter(
+    service: Service, path: str, params: dict[str, str], param: str
+) -> None:
+    r = httpx.get(service.url + path, params=params)
+    assert r.status_code == 422
+    detail = r.json()["detail"]
+    assert any(param in d["loc"] for d in detail), detail
+
+
+def test_unknown_loop_is_404(service: Service) -> None:
+    for path in (
+        "/api/v1/loops/NOPE",
+        "/api/v1/loops/NOPE/diagnoses",
+        "/api/v1/loops/NOPE/samples",
+    ):
+        r = httpx.get(service.url + path)
+        assert r.status_code == 404 and "NOPE" in r.json()["detail"]
+
+
+def test_changing_anything_needs_the_api_key(service: Service) -> None:
+    url = f"{service.url}/api/v1/loops/FIC101/diagnose"
+    assert httpx.post(url).status_code == 401
+    assert httpx.post(url, headers={"X-API-Key": "wrong"}).status_code == 401
+    r = httpx.post(url, headers={"X-API-Key": API_KEY}, timeout=60)
+    assert r.status_code == 200 and r.json() == {"loop": "FIC101", "cause": "ok"}
+
+
+def test_reads_need_the_key_when_configured(service: Service) -> None:
+    port = free_port()
+    folder = service.config.parent
+    config = write_config(folder, port=port, reads_need_key=True)
+    svc = start_service(config, port, service.truth, service.start)
+    try:
+        assert httpx.get(f"{svc.url}/api/v1/loops").status_code == 401
+        assert httpx.get(f"{svc.url}/").status_code == 401
+        r = httpx.get(f"{svc.url}/api/v1/loops", headers={"X-API-Key": API_KEY})
+        assert r.status_code == 200 and len(r.json()) == 8
+        assert httpx.get(f"{svc.url}/healthz").status_code == 200  # probes stay open
+    finally:
+        svc.stop()
+
+
+def test_bad_config_refused_with_line_and_key(tmp_path: Path, run_cli: RunCli) -> None:
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text('[api]\nport = "eighty"\n', encoding="utf-8")
+    r = run_cli("run", "--config", str(cfg))
+    assert r.returncode == 2
+    assert "bad.toml:2: api.port" in r.stderr
+
+
+def test_unmigrated_database_refused_with_the_fix(tmp_path: Path, run_cli: RunCli) -> None:
+    cfg = tmp_path / "plantcheck.toml"
+    cfg.write_text(
+        f'[storage]\nurl = "sqlite+aiosqlite:///{tmp_path / "x.db"}"\n', encoding="utf-8"
+    )
+    r = run_cli("run", "--config", str(cfg))
+    assert r.returncode == 2 and "plantcheck db upgrade" in r.stderr
+
+
+# -- the web page, in a real browser --------------------------------------------------------
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def dump_dom(url: str, profile: Path) -> str:
+    """The DOM after the page's scripts ran, from headless Chromium."""
+    exe = _chromium()
+    if exe is None:
+        pytest.skip("Chromium is not installed (make test installs Debian's chromium as root)")
+    out = subprocess.run(
+        [
+            exe,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={profile}",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+            url,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    return out.stdout
+
+
+def test_page_shows_the_health_table_sorted_and_coloured(service: Service, tmp_path: Path) -> None:
+    dom = dump_dom(f"{service.url}/#sort=-S", tmp_path / "profile")
+    rows = re.findall(r'<tr class="state-(\w+)" data-loop="(\w+)"', dom)
+    assert len(rows) == 8
+    by_loop = dict((name, state) for state, name in rows)
+    assert by_loop["FIC102"] == "fault" and by_loop["FIC101"] == "ok"
+    # sorted by S, largest first (by the page's script): the sticky valves lead
+    assert {rows[0][1], rows[1][1]} == {"FIC102", "LIC201"}
+    assert 'aria-sort="descending"' in dom
+
+
+def test_page_draws_the_loop_plots(service: Service, tmp_path: Path) -> None:
+    dom = dump_dom(f"{service.url}/loop/FIC102", tmp_path / "profile")
+    assert re.search(r'id="trend-pv"[^>]*data-rendered="true"', dom), dom[:2000]
+    assert re.search(r'id="trend-op"[^>]*data-rendered="true"', dom)
+    assert re.search(r'<canvas id="pvop"[^>]*data-rendered="true"', dom)
+    assert "<canvas" in dom.split('id="trend-pv"', 1)[1]  # uPlot drew into a canvas
+    assert "Schedule valve maintenance" in dom
+
+
+def test_page_actions_and_stiction_report(service: Service, tmp_path: Path) -> None:
+    dom = dump_dom(f"{service.url}/actions", tmp_path / "p1")
+    assert "valve_maintenance" not in dom and "Schedule valve maintenance" in dom
+    dom = dump_dom(f"{service.url}/stiction", tmp_path / "p2")
+    assert re.search(r'data-loop="FIC102"[^>]*data-rendered="true"', dom) or re.search(
+        r'data-rendered="true"[^>]*data-loop="FIC102"', dom
+    )
