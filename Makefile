@@ -23,14 +23,18 @@ typecheck: venv
 	@tmp=$$(mktemp -d) && ln -s "$(CURDIR)" "$$tmp/plantcheck" && \
 	  MYPYPATH="$$tmp" $(BIN)/mypy -p plantcheck; rc=$$?; rm -rf "$$tmp"; exit $$rc
 
-# Debian packages the tests use: PostgreSQL (a throw-away cluster per test session).
+# Debian packages the tests use: PostgreSQL (a throw-away cluster per test session) and
+# Chromium (the web page test, headless). Installed with apt-get when missing and root.
 system-deps:
-	@if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then \
+	@need=""; \
+	ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || need="$$need postgresql"; \
+	command -v chromium >/dev/null 2>&1 || need="$$need chromium"; \
+	if [ -n "$$need" ]; then \
 	  if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
-	    echo "installing PostgreSQL (Debian package postgresql) for the storage tests"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null; \
+	    echo "installing Debian packages for the tests:$$need"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$need >/dev/null; \
 	  else \
-	    echo "PostgreSQL is not installed and cannot be installed here: its tests will be skipped"; \
+	    echo "missing$$need and cannot install here: the tests that need them will be skipped"; \
 	  fi; \
 	fi
 
@@ -40,7 +44,7 @@ pytest: venv system-deps
 test: lint typecheck pytest
 
 demo: venv
-	$(BIN)/plantcheck diagnose simulator/examples/sticky_flow.csv --loop-type flow
+	$(BIN)/plantcheck demo
 
 clean:
 	rm -rf $(VENV) build .mypy_cache .pytest_cache .ruff_cache

@@ -17,6 +17,7 @@ from fastapi.staticfiles import StaticFiles
 
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
+from plantcheck.api.loop_table import LoopTable
 from plantcheck.service.config import ApiConfig
 
 Lifespan = Callable[[FastAPI], AbstractAsyncContextManager[None]]
@@ -39,6 +40,7 @@ def create_app(api_config: ApiConfig, lifespan: Lifespan) -> FastAPI:
     )
     app.state.api_config = api_config
     app.state.started = time.time()
+    app.state.loop_table = LoopTable()
     app.include_router(routes.router)
     app.include_router(reports.router)
     app.include_router(health.router)

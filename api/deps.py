@@ -104,28 +104,53 @@ def iso_required(us: int) -> str:
     return out
 
 
+def parse_time(value: str | None, name: str) -> int | None:
+    """µs since the epoch from an ISO 8601 query value (no zone = UTC); 422 naming ``name``."""
+    if value is None:
+        return None
+    try:
+        return to_us(datetime.fromisoformat(value.strip().replace("z", "Z")))
+    except (ValueError, OverflowError, OSError):
+        raise HTTPException(
+            422,
+            [
+                {
+                    "loc": ["query", name],
+                    "msg": f"{name!r} must be an ISO 8601 time such as 2026-11-21T08:00:00Z",
+                    "type": "value_error",
+                    "input": value,
+                }
+            ],
+        ) from None
+
+
+ISO_TIME = {"format": "date-time"}
+
+
 class TimeRange:
     """``from`` and ``to`` query parameters (ISO 8601; no zone = UTC), ``from`` before ``to``."""
 
     def __init__(
         self,
         start: Annotated[
-            datetime | None,
-            Query(alias="from", description="Start, ISO 8601 (no zone = UTC), inclusive."),
+            str | None,
+            Query(
+                alias="from",
+                description="Start, ISO 8601 (no zone = UTC), inclusive.",
+                json_schema_extra=ISO_TIME,
+            ),
         ] = None,
         end: Annotated[
-            datetime | None,
-            Query(alias="to", description="End, ISO 8601 (no zone = UTC), exclusive."),
+            str | None,
+            Query(
+                alias="to",
+                description="End, ISO 8601 (no zone = UTC), exclusive; not before 'from'.",
+                json_schema_extra=ISO_TIME,
+            ),
         ] = None,
     ) -> None:
-        try:
-            self.start_us = to_us(start)
-            self.end_us = to_us(end)
-        except (OverflowError, ValueError, OSError):
-            raise HTTPException(
-                422,
-                [{"loc": ["query", "from/to"], "msg": "time out of range", "type": "value_error"}],
-            ) from None
+        self.start_us = parse_time(start, "from")
+        self.end_us = parse_time(end, "to")
         if self.start_us is not None and self.end_us is not None and self.start_us > self.end_us:
             raise HTTPException(
                 422,

@@ -6,6 +6,7 @@ Lists are JSON arrays; pagination is ``limit``/``offset`` with the total in the
 
 from __future__ import annotations
 
+import json
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request, Response
@@ -19,6 +20,7 @@ from plantcheck.api.deps import (
     require_read_key,
     require_write_key,
 )
+from plantcheck.api.loop_table import LoopTable
 from plantcheck.api.models import (
     ActionOut,
     DiagnoseNow,
@@ -83,7 +85,6 @@ def _loop_out(s: LoopStatus) -> LoopOut:
 async def list_loops(
     backend: Backend,
     request: Request,
-    response: Response,
     state: Annotated[State | None, Query(description="Only loops in this state.")] = None,
     cause: Annotated[Cause | None, Query(description="Only loops with this cause.")] = None,
     loop_type: Annotated[
@@ -92,17 +93,28 @@ async def list_loops(
     ] = None,
     limit: Annotated[int, Query(ge=1, le=100_000, description="Most loops returned.")] = 10_000,
     offset: Offset = 0,
-) -> list[LoopOut]:
-    """The loop-health table: every loop, its state, cause, since when, latest S and J."""
-    rows = [
-        r
-        for r in await loop_statuses(backend.store)
-        if (state is None or r.state == state)
-        and (cause is None or r.cause == cause)
-        and (loop_type is None or r.type == loop_type)
-    ]
-    paginate(request, response, len(rows), limit, offset)
-    return [_loop_out(r) for r in rows[offset : offset + limit]]
+) -> Response:
+    """The loop-health table: every loop, its state, cause, since when, latest S and J
+    (at most one second old)."""
+    table: LoopTable = request.app.state.loop_table
+    rows, body = await table.get(backend.store)
+    response = Response(media_type="application/json")
+    if state is None and cause is None and loop_type is None:
+        selected = rows
+    else:
+        selected = [
+            r
+            for r in rows
+            if (state is None or r["state"] == state)
+            and (cause is None or r["cause"] == cause)
+            and (loop_type is None or r["type"] == loop_type)
+        ]
+    paginate(request, response, len(selected), limit, offset)
+    if selected is not rows or offset > 0 or limit < len(rows):
+        body = json.dumps(selected[offset : offset + limit], separators=(",", ":")).encode()
+    response.body = body
+    response.headers["Content-Length"] = str(len(body))
+    return response
 
 
 @router.get("/loops/{loop_id}", response_model=LoopDetail, responses={**NOT_FOUND, **UNAUTHORIZED})

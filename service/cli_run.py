@@ -5,11 +5,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import signal
 import socket
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -44,13 +46,32 @@ async def _check_store(cfg: Config, hint: str) -> None:
     await store.close()
 
 
+class _Server(uvicorn.Server):
+    """uvicorn's server, stopping on SIGINT/SIGTERM without re-raising the signal afterwards
+    (uvicorn does), so the caller's clean-up (the demo's simulator process) still runs."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, self._stop_on_signal)
+        try:
+            yield
+        finally:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.remove_signal_handler(sig)
+
+    def _stop_on_signal(self) -> None:
+        if self.should_exit:
+            self.force_exit = True
+        self.should_exit = True
+
+
 def _serve(cfg: Config, hint: str, progress: float | None, duration: float | None) -> None:
     from plantcheck.service.app import build_app
 
     app = build_app(cfg, hint)
-    server = uvicorn.Server(
-        uvicorn.Config(app, host=cfg.api.host, port=cfg.api.port, log_level="warning")
-    )
+    server = _Server(uvicorn.Config(app, host=cfg.api.host, port=cfg.api.port, log_level="warning"))
 
     async def report() -> None:
         t0 = time.monotonic()
@@ -148,6 +169,7 @@ def demo_config(data_dir: Path, port: int, opcua_url: str, speed: float) -> str:
             "[scheduler]",
             "window_s = 3600",
             "period_s = 10",
+            "quantify_every_s = 60",
             "",
             tables,
         ]

@@ -74,6 +74,8 @@ class SchedulerConfig(_Strict):
     """Worker processes that run the diagnosis chain."""
     confirm: int = Field(2, ge=1, le=100)
     """Consecutive diagnoses that must agree on a new cause before a loop's state changes."""
+    quantify_every_s: float = Field(3600.0, ge=0)
+    """Shortest time between two S/J estimates of one valve (0: every diagnosis)."""
 
 
 class SourceConfig(_Strict):

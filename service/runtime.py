@@ -63,6 +63,7 @@ class Runtime:
                     cfg.scheduler.workers,
                     metrics,
                     confirm=cfg.scheduler.confirm,
+                    quantify_every_s=cfg.scheduler.quantify_every_s,
                 )
                 await sched.start()
             metrics.set_loop_states(await count_loops_by_state(ing.store))

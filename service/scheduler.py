@@ -3,7 +3,9 @@
 Each loop gets an interval job (its ``period_s``, default 10 min) that reads the loop's last
 ``window_s`` seconds (default 2 h) from the store, runs the diagnosis chain in a worker process
 (``ProcessPoolExecutor``: the event loop that ingests and serves never blocks on numpy) and
-stores the diagnosis, its suggested action and any stiction estimate. A loop's verdict (state,
+stores the diagnosis, its suggested action and any stiction estimate. The Hammerstein S/J
+estimate (methods §6.1, the costly step: about 0.5 s a window) is made at most every
+``quantify_every_s`` (default 1 h) per loop: enough for a trend over weeks. A loop's verdict (state,
 cause, ``since``) changes only when ``confirm`` consecutive diagnoses (default 2) find the same
 new cause, so one odd window does not flip the health table; every diagnosis is kept in the
 history whatever its cause.
@@ -61,6 +63,8 @@ class LoopJobState:
     streak: int = 0
     """Consecutive diagnoses that found ``last_cause``."""
     streak_since_us: int = 0
+    quantified_at: float = -float("inf")
+    """When (monotonic s) S and J were last estimated for this loop."""
 
 
 def _now_us() -> int:
@@ -82,6 +86,7 @@ class DiagnosisScheduler:
         metrics: ServiceMetrics | None = None,
         first_run_within_s: float = 30.0,
         confirm: int = 2,
+        quantify_every_s: float = 3600.0,
     ) -> None:
         self.store = store
         self.schedules = {s.name: s for s in schedules}
@@ -89,10 +94,12 @@ class DiagnosisScheduler:
         self.metrics = metrics or ServiceMetrics()
         self.first_run_within_s = first_run_within_s
         self.confirm = confirm
+        self.quantify_every_s = quantify_every_s
         self.state = {s.name: LoopJobState() for s in schedules}
         self._scheduler: Any = None
         self._pool: ProcessPoolExecutor | None = None
         self._slots = asyncio.Semaphore(workers)
+        self._reads = asyncio.Semaphore(workers + 1)
         self._loops: dict[str, LoopRow] = {}
 
     @property
@@ -102,13 +109,7 @@ class DiagnosisScheduler:
     async def start(self) -> None:
         """Start the worker pool and one interval job per loop, first runs spread over
         ``first_run_within_s`` (or the period, when shorter)."""
-        self._loops = await self.store.loops()
-        ctx = multiprocessing.get_context("spawn")
-        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
-        loop = asyncio.get_running_loop()
-        await asyncio.gather(
-            *(loop.run_in_executor(self._pool, _warm) for _ in range(self.workers))
-        )
+        await self.open_pool()
         self._scheduler = AsyncIOScheduler(timezone="UTC")
         n = max(1, len(self.schedules))
         now = time.time()
@@ -128,6 +129,17 @@ class DiagnosisScheduler:
         self._scheduler.start()
         log.info("diagnosis scheduled for %d loops on %d workers", n, self.workers)
 
+    async def open_pool(self) -> None:
+        """Start the worker processes (spawned: no inherited event loop or database handles)
+        and read the loops' tag mapping."""
+        self._loops = await self.store.loops()
+        ctx = multiprocessing.get_context("spawn")
+        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+        loop = asyncio.get_running_loop()
+        await asyncio.gather(
+            *(loop.run_in_executor(self._pool, _warm) for _ in range(self.workers))
+        )
+
     async def stop(self) -> None:
         if self._scheduler is not None and self._scheduler.running:
             self._scheduler.shutdown(wait=False)
@@ -141,8 +153,7 @@ class DiagnosisScheduler:
         st = self.state[name]
         t0 = time.perf_counter()
         try:
-            async with self._slots:
-                cause = await self._diagnose(sched)
+            cause = await self._diagnose(sched)
         except Exception as exc:
             self.metrics.diagnoses.labels("failed").inc()
             if not st.failing:
@@ -181,12 +192,29 @@ class DiagnosisScheduler:
                     f"window shortened to the {(end_us - start_us) / 1e6:.0f} s of data stored "
                     f"so far (configured {sched.window_s:g} s)"
                 )
-        win = await self.store.read_window(row, start_us, end_us, hold=sched.hold)
+        async with self._reads:  # windows read ahead while the workers diagnose
+            win = await self.store.read_window(row, start_us, end_us, hold=sched.hold)
         values = {k: v for k, v in win.values.items() if k in win.signals or k in ("pv", "op")}
+        st = self.state[sched.name]
+        quantify = time.monotonic() - st.quantified_at >= self.quantify_every_s
+        if not quantify:
+            notes.append(
+                f"S and J not re-estimated in this window (estimated at most every "
+                f"{self.quantify_every_s:g} s; the latest estimate stays in the loop table)"
+            )
         assert self._pool is not None, "scheduler not started"
-        payload = await asyncio.get_running_loop().run_in_executor(
-            self._pool, diagnose_window, values, win.sample_time_s, sched.loop_type, notes
-        )
+        async with self._slots:
+            payload = await asyncio.get_running_loop().run_in_executor(
+                self._pool,
+                diagnose_window,
+                values,
+                win.sample_time_s,
+                sched.loop_type,
+                notes,
+                quantify,
+            )
+        if quantify and payload["cause"] in ("stiction", "deadband_backlash"):
+            st.quantified_at = time.monotonic()
         await self._store(row, payload, start_us, end_us, now_us)
         return str(payload["cause"])
 

@@ -34,12 +34,14 @@ def diagnose_window(
     sample_time_s: float,
     loop_type: str,
     notes: list[str] | None = None,
+    quantify: bool = True,
 ) -> dict[str, Any]:
     """The diagnosis (contracts §2 JSON object) of one aligned window.
 
     ``values`` holds ``pv``, ``op`` and optionally ``sp``, ``mv``, ``mode`` on one grid of
     ``sample_time_s`` seconds (missing samples NaN). The advanced chain runs when MV was stored
     for at least half the window (Bacci di Capaci 2016, §2.7), the standard chain otherwise.
+    ``quantify`` off skips the Hammerstein S/J estimate (methods §6.1), the costly part.
     """
     pv, op = values["pv"], values["op"]
     sp = values.get("sp")
@@ -48,8 +50,12 @@ def diagnose_window(
     auto = automatic(values.get("mode"))
     mv = values.get("mv")
     if mv is not None and mv.size and np.isfinite(mv).mean() >= MIN_MV_COVERAGE:
-        d = diagnose_advanced(pv, op, mv, sample_time_s, sp=sp, auto=auto, loop_type=loop_type)
+        d = diagnose_advanced(
+            pv, op, mv, sample_time_s, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify
+        )
     else:
-        d = diagnose(pv, op, sample_time_s, sp=sp, auto=auto, loop_type=loop_type)
+        d = diagnose(
+            pv, op, sample_time_s, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify
+        )
     d.notes = (notes or []) + d.notes
     return d.to_dict()

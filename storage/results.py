@@ -116,51 +116,34 @@ async def _update_action(conn: AsyncConnection, v: Verdict, changed: bool) -> No
 
 async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatus]:
     """The loop-health table (one loop with ``name``), with each valve's latest S and J."""
-    latest = (
-        select(
-            stiction_estimates.c.loop_id,
-            func.max(stiction_estimates.c.at_us).label("at_us"),
-        )
-        .group_by(stiction_estimates.c.loop_id)
-        .subquery()
-    )
-    est = (
-        select(stiction_estimates.c.loop_id, stiction_estimates.c.S, stiction_estimates.c.J)
-        .join(
-            latest,
-            and_(
-                latest.c.loop_id == stiction_estimates.c.loop_id,
-                latest.c.at_us == stiction_estimates.c.at_us,
-            ),
-        )
-        .subquery()
-    )
-    q = select(loops, est.c.S, est.c.J).outerjoin(est, est.c.loop_id == loops.c.id)
+    q = select(loops).order_by(loops.c.name)
+    latest = select(func.max(stiction_estimates.c.id)).group_by(stiction_estimates.c.loop_id)
     if name is not None:
         q = q.where(loops.c.name == name)
-    async with store.engine.connect() as conn:
-        rows = (await conn.execute(q.order_by(loops.c.name))).all()
-    seen: set[str] = set()
-    out = []
-    for r in rows:
-        if r.name in seen:  # two estimates with the same time: keep one
-            continue
-        seen.add(r.name)
-        out.append(
-            LoopStatus(
-                r.name,
-                r.type,
-                r.source,
-                r.description,
-                r.state,
-                r.cause,
-                r.since_us,
-                r.last_diagnosis_us,
-                r.S,
-                r.J,
-            )
+        latest = latest.where(
+            stiction_estimates.c.loop_id.in_(select(loops.c.id).where(loops.c.name == name))
         )
-    return out
+    est_q = select(
+        stiction_estimates.c.loop_id, stiction_estimates.c.S, stiction_estimates.c.J
+    ).where(stiction_estimates.c.id.in_(latest.scalar_subquery()))
+    async with store.engine.connect() as conn:
+        rows = (await conn.execute(q)).all()
+        est = {r[0]: (r[1], r[2]) for r in (await conn.execute(est_q)).all()}
+    none: tuple[float | None, float | None] = (None, None)
+    return [
+        LoopStatus(
+            r.name,
+            r.type,
+            r.source,
+            r.description,
+            r.state,
+            r.cause,
+            r.since_us,
+            r.last_diagnosis_us,
+            *est.get(r.id, none),
+        )
+        for r in rows
+    ]
 
 
 def _between(col: Any, start_us: int | None, end_us: int | None) -> list[ColumnElement[bool]]:

@@ -5,14 +5,16 @@ from __future__ import annotations
 import asyncio
 import subprocess
 import sys
+import tempfile
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pgcluster
 import pytest
-from helpers import RunCli
+from helpers import RunCli, free_port
 from pgcluster import PgCluster
+from servicehelpers import Service, fill_store, start_service, wait_diagnosed, write_config
 
 from plantcheck.storage.database import upgrade
 
@@ -50,6 +52,22 @@ def pg_cluster() -> Iterator[PgCluster]:
         yield cluster
     finally:
         cluster.destroy()
+
+
+@pytest.fixture(scope="session")
+def service() -> Iterator[Service]:
+    """One running service over 1 h of the default plant (8 loops), every loop diagnosed."""
+    with tempfile.TemporaryDirectory(prefix="plantcheck-svc-") as d:
+        folder = Path(d)
+        port = free_port()
+        config = write_config(folder, port=port)
+        start, truth = fill_store(folder, config)
+        svc = start_service(config, port, truth, start)
+        try:
+            wait_diagnosed(svc.url, len(truth))
+            yield svc
+        finally:
+            svc.stop()
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

@@ -61,6 +61,7 @@ def write_config(folder: Path, *, port: int, reads_need_key: bool = False) -> Pa
             "period_s = 3",
             "workers = 2",
             "confirm = 1",
+            "quantify_every_s = 0",
             "",
             map_toml(sc, protocol="opcua"),
         ]
@@ -115,12 +116,15 @@ def start_service(
     config: Path, port: int, truth: dict[str, dict[str, object]], start: datetime
 ) -> Service:
     """``plantcheck run --config`` in a new process; returns once /readyz answers 200."""
-    proc = subprocess.Popen([*CLI, "run", "--config", str(config)], stderr=subprocess.DEVNULL)
+    log = config.with_suffix(".log")
+    with log.open("wb") as err:
+        proc = subprocess.Popen([*CLI, "run", "--config", str(config)], stderr=err)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         if proc.poll() is not None:
-            raise RuntimeError(f"plantcheck run exited with {proc.returncode}")
+            tail = log.read_text(errors="replace")[-3000:]
+            raise RuntimeError(f"plantcheck run exited with {proc.returncode}:\n{tail}")
         try:
             if httpx.get(f"{url}/readyz", timeout=2).status_code == 200:
                 return Service(url, proc, config, truth, start)

@@ -9,38 +9,13 @@ import io
 import re
 import shutil
 import subprocess
-import tempfile
-from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
 
 import httpx
 import pytest
 from helpers import RunCli, free_port
-from servicehelpers import (
-    API_KEY,
-    Service,
-    fill_store,
-    start_service,
-    wait_diagnosed,
-    write_config,
-)
-
-
-@pytest.fixture(scope="module")
-def service() -> Iterator[Service]:
-    """One running service over 1 h of the default plant (8 loops), every loop diagnosed."""
-    with tempfile.TemporaryDirectory(prefix="plantcheck-svc-") as d:
-        folder = Path(d)
-        port = free_port()
-        config = write_config(folder, port=port)
-        start, truth = fill_store(folder, config)
-        svc = start_service(config, port, truth, start)
-        try:
-            wait_diagnosed(svc.url, len(truth))
-            yield svc
-        finally:
-            svc.stop()
+from servicehelpers import API_KEY, Service, start_service, write_config
 
 
 def test_every_loop_gets_its_true_cause(service: Service) -> None:

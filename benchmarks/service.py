@@ -1,0 +1,238 @@
+"""Service throughput and API latency.
+
+1. Diagnosis throughput: N loops (copies of the default plant's eight loops) with one hour of
+   1-s samples each in a SQLite store; the scheduler's job (read the window, diagnose it in the
+   worker pool, store verdict, action and S/J) run for every loop. Prints loops diagnosed per
+   minute per core (target >= 5,000), overall and for the healthy share of the mix.
+2. API latency: ``GET /api/v1/loops`` on a store of 1,000 diagnosed loops, served by uvicorn in
+   its own process, under C concurrent clients. Prints p50 and p99 (target p99 <= 50 ms).
+
+    python benchmarks/service.py [--loops 96] [--workers 1] [--api-loops 1000] [--clients 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import multiprocessing
+import statistics
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import httpx
+import numpy as np
+import uvicorn
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from helpers import free_port
+from simhelpers import scaled_scenario
+
+from plantcheck.diagnosis.result import action_for, priority_of, state_of
+from plantcheck.service.config import Config
+from plantcheck.service.metrics import ServiceMetrics
+from plantcheck.service.runtime import schedules_of
+from plantcheck.service.scheduler import DiagnosisScheduler
+from plantcheck.simulator.plant import Plant
+from plantcheck.storage.database import upgrade
+from plantcheck.storage.results import Verdict, record_verdict
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.store import Store
+
+SIGNALS = ("sp", "pv", "op", "mv", "mode")
+
+
+def bench_config(folder: Path, n: int, port: int = 8000) -> Config:
+    """n loops on a (never served) OPC UA source, SQLite in ``folder``, 1-hour windows."""
+    loops = [
+        {
+            "id": f"L{i:05d}",
+            "type": spec.type,
+            "source": "bench",
+            **{s: f"ns=2;s=L{i:05d}.{s.upper()}" for s in ("sp", "pv", "op", "mode")},
+            **({"mv": f"ns=2;s=L{i:05d}.MV"} if spec.expose_mv else {}),
+        }
+        for i, spec in enumerate(scaled_scenario(n).loop)
+    ]
+    return Config.model_validate(
+        {
+            "storage": {
+                "url": f"sqlite+aiosqlite:///{folder / 'bench.db'}",
+                "buffer_path": str(folder / "buffer.db"),
+            },
+            "api": {"port": port},
+            "scheduler": {"window_s": 3600, "period_s": 600},
+            "source": [{"name": "bench", "protocol": "opcua", "url": "opc.tcp://127.0.0.1:1/"}],
+            "loop": loops,
+        }
+    )
+
+
+async def fill(cfg: Config, n: int, seconds: int) -> None:
+    """Simulate ``seconds`` of the scaled plant and store every sample."""
+    store = await Store.open(cfg.storage.url)
+    rows = await store.sync_config(cfg)
+    sc = scaled_scenario(n)
+    start = datetime.now(UTC).replace(microsecond=0) - timedelta(seconds=seconds)
+    plant = Plant(sc, start)
+    tag = np.array(
+        [[rows[s.id].tags.get(sig, -1) for sig in SIGNALS] for s in sc.loop], dtype=np.int64
+    )
+    batch: list[Sample] = []
+    for _ in range(seconds):
+        plant.step()
+        t = int(plant.time.timestamp() * 1e6)
+        v = plant.values
+        for i, j in zip(*np.nonzero(tag >= 0), strict=True):
+            batch.append(Sample(int(tag[i, j]), t, t, float(v[i, j]), 0))
+        if len(batch) > 200_000:
+            await store.write_samples(batch)
+            batch = []
+    await store.write_samples(batch)
+    await store.close()
+
+
+async def diagnose_all(cfg: Config, workers: int) -> tuple[float, dict[str, int], list[float]]:
+    """Run every loop's job once; returns (seconds, causes, per-loop durations)."""
+    store = await Store.open(cfg.storage.url)
+    sched = DiagnosisScheduler(store, schedules_of(cfg), workers, ServiceMetrics())
+    await sched.open_pool()
+    causes: dict[str, int] = {}
+    durations: list[float] = []
+
+    async def one(name: str) -> None:
+        t = time.perf_counter()
+        cause = await sched.run_loop(name)
+        durations.append(time.perf_counter() - t)
+        causes[str(cause)] = causes.get(str(cause), 0) + 1
+
+    t0 = time.perf_counter()
+    await asyncio.gather(*(one(name) for name in sched.schedules))
+    elapsed = time.perf_counter() - t0
+    await sched.stop()
+    await store.close()
+    return elapsed, causes, durations
+
+
+async def fake_verdicts(cfg: Config) -> None:
+    """Give every loop a verdict (and sticky valves an S) without diagnosing: the API load."""
+    store = await Store.open(cfg.storage.url)
+    rows = await store.sync_config(cfg)
+    now = time.time_ns() // 1000
+    mix = ["ok", "stiction", "aggressive_tuning", "sluggish_tuning", "external_disturbance"]
+    for k, row in enumerate(rows.values()):
+        cause = mix[k % len(mix)]
+        a = action_for(cause, 3.0 if cause == "stiction" else None)
+        await record_verdict(
+            store,
+            Verdict(
+                row,
+                now,
+                now - 3_600_000_000,
+                now,
+                cause,
+                state_of(cause),
+                {"cause": cause},
+                a["code"],
+                a["text"],
+                priority_of(cause),
+                3.0 if cause == "stiction" else None,
+                1.0 if cause == "stiction" else None,
+            ),
+        )
+    await store.close()
+
+
+def serve(cfg_json: str) -> None:
+    """Child process: the API over the store (no connectors, no scheduler)."""
+    from plantcheck.service.app import build_app
+
+    cfg = Config.model_validate_json(cfg_json)
+    app = build_app(cfg, connect=False, schedule=False)
+    uvicorn.run(app, host="127.0.0.1", port=cfg.api.port, log_level="warning")
+
+
+async def load(url: str, clients: int, requests: int) -> list[float]:
+    """``requests`` GETs spread over ``clients`` concurrent connections; latencies (s)."""
+    lat: list[float] = []
+    async with httpx.AsyncClient(timeout=30) as client:
+
+        async def worker(k: int) -> None:
+            for _ in range(k):
+                t = time.perf_counter()
+                r = await client.get(url)
+                lat.append(time.perf_counter() - t)
+                assert r.status_code == 200
+
+        per = requests // clients
+        await asyncio.gather(*(worker(per) for _ in range(clients)))
+    return lat
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--loops", type=int, default=96, help="loops diagnosed (default 96)")
+    ap.add_argument("--seconds", type=int, default=3600, help="window length (default 3600)")
+    ap.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    ap.add_argument("--api-loops", type=int, default=1000)
+    ap.add_argument("--clients", type=int, default=10)
+    ap.add_argument("--requests", type=int, default=2000)
+    ap.add_argument("--skip-diagnosis", action="store_true")
+    ap.add_argument("--skip-api", action="store_true")
+    args = ap.parse_args()
+
+    if not args.skip_diagnosis:
+        with tempfile.TemporaryDirectory() as d:
+            cfg = bench_config(Path(d), args.loops)
+            upgrade(cfg.storage.url)
+            t = time.perf_counter()
+            asyncio.run(fill(cfg, args.loops, args.seconds))
+            print(
+                f"stored {args.loops} loops x {args.seconds} s in {time.perf_counter() - t:.1f} s"
+            )
+            elapsed, causes, dur = asyncio.run(diagnose_all(cfg, args.workers))
+            rate = args.loops / elapsed * 60 / args.workers
+            print(
+                f"diagnosed {args.loops} loops ({args.seconds}-s windows at 1 s) on "
+                f"{args.workers} worker(s) in {elapsed:.1f} s: {rate:,.0f} loops/min/core "
+                f"(target >= 5,000)"
+            )
+            print(
+                f"  per-loop job time: median {statistics.median(dur) * 1e3:.0f} ms, "
+                f"max {max(dur) * 1e3:.0f} ms; causes {causes}"
+            )
+
+    if not args.skip_api:
+        with tempfile.TemporaryDirectory() as d:
+            cfg = bench_config(Path(d), args.api_loops, port=free_port())
+            upgrade(cfg.storage.url)
+            asyncio.run(fake_verdicts(cfg))
+            ctx = multiprocessing.get_context("spawn")
+            proc = ctx.Process(target=serve, args=(cfg.model_dump_json(),))
+            proc.start()
+            url = f"http://127.0.0.1:{cfg.api.port}/api/v1/loops"
+            try:
+                for _ in range(100):
+                    try:
+                        if httpx.get(url, timeout=5).status_code == 200:
+                            break
+                    except httpx.TransportError:
+                        time.sleep(0.2)
+                asyncio.run(load(url, 2, 50))  # warm up
+                lat = sorted(asyncio.run(load(url, args.clients, args.requests)))
+                p50 = lat[len(lat) // 2] * 1e3
+                p99 = lat[int(len(lat) * 0.99)] * 1e3
+                print(
+                    f"GET /api/v1/loops ({args.api_loops} loops, {args.clients} concurrent "
+                    f"clients, {len(lat)} requests): p50 {p50:.1f} ms, p99 {p99:.1f} ms "
+                    f"(target p99 <= 50 ms)"
+                )
+            finally:
+                proc.terminate()
+                proc.join()
+
+
+if __name__ == "__main__":
+    main()
