@@ -1,4 +1,4 @@
-"""The loop-health table as the API serves it, rebuilt at most once a second.
+"""The loop-health table as the API serves it, rebuilt about once a second.
 
 Operators' pages and dashboards poll ``GET /api/v1/loops`` all the time while verdicts change
 at most once per diagnosis period; one store query per second serves any number of readers.
@@ -33,7 +33,11 @@ def loop_json(s: LoopStatus) -> dict[str, Any]:
 
 
 class LoopTable:
-    """Cached rows and JSON body of the whole table (``ttl_s`` seconds old at most)."""
+    """Cached rows and JSON body of the whole table, ``ttl_s`` seconds old at most once warm.
+
+    Stale-while-revalidate: after the first build a reader never waits for the store; a stale
+    table is served while one background refresh runs.
+    """
 
     def __init__(self, ttl_s: float = 1.0) -> None:
         self.ttl_s = ttl_s
@@ -41,13 +45,21 @@ class LoopTable:
         self._rows: list[dict[str, Any]] = []
         self._body = b"[]"
         self._lock = asyncio.Lock()
+        self._refresh: asyncio.Task[None] | None = None
+
+    async def _build(self, store: Store) -> None:
+        rows = [loop_json(s) for s in await loop_statuses(store)]
+        self._rows, self._body = rows, json.dumps(rows, separators=(",", ":")).encode()
+        self._at = time.monotonic()
 
     async def get(self, store: Store) -> tuple[list[dict[str, Any]], bytes]:
         """(rows, their JSON array), refreshed from the store when older than ``ttl_s``."""
-        if time.monotonic() - self._at >= self.ttl_s:
+        if self._at == -float("inf"):
             async with self._lock:
-                if time.monotonic() - self._at >= self.ttl_s:
-                    self._rows = [loop_json(s) for s in await loop_statuses(store)]
-                    self._body = json.dumps(self._rows, separators=(",", ":")).encode()
-                    self._at = time.monotonic()
+                if self._at == -float("inf"):
+                    await self._build(store)
+        elif time.monotonic() - self._at >= self.ttl_s and (
+            self._refresh is None or self._refresh.done()
+        ):
+            self._refresh = asyncio.create_task(self._build(store))
         return self._rows, self._body

@@ -51,3 +51,19 @@ def test_bad_configuration_is_refused_with_line_and_key(
     with pytest.raises(ConfigError) as info:
         load_config(path)
     assert expected in str(info.value), str(info.value)
+
+
+def test_deploy_example_is_a_valid_configuration() -> None:
+    cfg = load_config(ROOT / "deploy" / "plantcheck.example.toml")
+    assert cfg.storage.url.startswith("postgresql+asyncpg://")
+    assert cfg.loop[0].stiction_limit == 2.0
+
+
+def test_readme_service_keys_are_valid_configuration(tmp_path: Path) -> None:
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"```toml\n(\[api\].*?)\[\[loop\]\]", text, re.S)
+    assert block, "README has no service configuration example"
+    path = tmp_path / "plantcheck.toml"
+    path.write_text(block.group(1))
+    cfg = load_config(path)
+    assert cfg.scheduler.confirm == 2 and cfg.scheduler.quantify_every_s == 3600
