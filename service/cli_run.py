@@ -25,8 +25,6 @@ from plantcheck.storage.database import StorageError, upgrade
 from plantcheck.storage.results import loop_statuses
 from plantcheck.storage.store import Store
 
-log = logging.getLogger("plantcheck")
-
 
 def _check_port(host: str, port: int, what: str) -> None:
     """Refuse early, with the fix, when the API port is taken."""

@@ -7,7 +7,6 @@ since 1970-01-01 UTC, as everywhere in the store.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -223,8 +222,3 @@ async def count_loops_by_state(store: Store) -> dict[str, int]:
     q = select(loops.c.state, func.count()).group_by(loops.c.state)
     async with store.engine.connect() as conn:
         return {r[0]: int(r[1]) for r in (await conn.execute(q)).all()}
-
-
-def page(items: Sequence[Any], limit: int, offset: int) -> list[Any]:
-    """One page of an in-memory list."""
-    return list(items[offset : offset + limit])
