@@ -81,10 +81,8 @@ def require_write_key(
         )
 
 
-def to_us(t: datetime | None) -> int | None:
+def to_us(t: datetime) -> int:
     """µs since the epoch; a time without a zone is taken as UTC."""
-    if t is None:
-        return None
     if t.tzinfo is None:
         t = t.replace(tzinfo=UTC)
     return int(t.timestamp() * 1_000_000)

@@ -20,7 +20,7 @@ from plantcheck.api.deps import (
     require_read_key,
     require_write_key,
 )
-from plantcheck.api.loop_table import LoopTable
+from plantcheck.api.loop_table import LoopTable, loop_json
 from plantcheck.api.models import (
     ActionOut,
     DiagnoseNow,
@@ -32,7 +32,6 @@ from plantcheck.api.models import (
 )
 from plantcheck.diagnosis.result import CAUSES
 from plantcheck.storage.results import (
-    LoopStatus,
     active_actions,
     diagnosis_history,
     loop_statuses,
@@ -66,21 +65,6 @@ def paginate(
         response.headers["Link"] = f'<{nxt}>; rel="next"'
 
 
-def _loop_out(s: LoopStatus) -> LoopOut:
-    return LoopOut(
-        id=s.id,
-        type=s.type,
-        source=s.source,
-        description=s.description,
-        state=s.state,
-        cause=s.cause,
-        since=iso(s.since_us),
-        last_diagnosis_at=iso(s.last_diagnosis_us),
-        S=s.S,
-        J=s.J,
-    )
-
-
 @router.get("/loops", response_model=list[LoopOut], responses=UNAUTHORIZED)
 async def list_loops(
     backend: Backend,
@@ -98,7 +82,6 @@ async def list_loops(
     (at most one second old)."""
     table: LoopTable = request.app.state.loop_table
     rows, body = await table.get(backend.store)
-    response = Response(media_type="application/json")
     if state is None and cause is None and loop_type is None:
         selected = rows
     else:
@@ -109,11 +92,10 @@ async def list_loops(
             and (cause is None or r["cause"] == cause)
             and (loop_type is None or r["type"] == loop_type)
         ]
-    paginate(request, response, len(selected), limit, offset)
     if selected is not rows or offset > 0 or limit < len(rows):
         body = json.dumps(selected[offset : offset + limit], separators=(",", ":")).encode()
-    response.body = body
-    response.headers["Content-Length"] = str(len(body))
+    response = Response(body, media_type="application/json")
+    paginate(request, response, len(selected), limit, offset)
     return response
 
 
@@ -125,7 +107,7 @@ async def get_loop_detail(backend: Backend, loop_id: LoopId) -> LoopDetail:
     _, latest = await diagnosis_history(backend.store, row, limit=1)
     d = latest[0] if latest else None
     return LoopDetail(
-        **_loop_out(status).model_dump(),
+        **loop_json(status),
         diagnosis=d["payload"] if d else None,
         window_start=iso(d["window_start_us"]) if d else None,
         window_end=iso(d["window_end_us"]) if d else None,

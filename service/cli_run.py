@@ -149,9 +149,7 @@ def demo_config(data_dir: Path, port: int, opcua_url: str, speed: float) -> str:
     sc = load_scenario(None)
     sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"url": opcua_url})})
     sampling = sc.clock.sample_time_s / speed
-    tables = map_toml(sc, protocol="opcua").replace(
-        'protocol = "opcua"\n', f'protocol = "opcua"\npoll_interval_s = {sampling:g}\n', 1
-    )
+    tables = map_toml(sc, protocol="opcua", poll_interval_s=sampling)
     return "\n".join(
         [
             "# written by `plantcheck demo`: the bundled simulator over OPC UA at "

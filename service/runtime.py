@@ -8,8 +8,7 @@ it reads the store and never runs a diagnosis itself.
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from plantcheck.service.config import Config
 from plantcheck.service.ingest import Ingestion
@@ -44,7 +43,6 @@ class Runtime:
     ingestion: Ingestion
     scheduler: DiagnosisScheduler | None
     metrics: ServiceMetrics
-    started_at: float = field(default_factory=time.time)
     _stored_seen: int = 0
 
     @classmethod

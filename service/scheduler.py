@@ -39,6 +39,9 @@ from plantcheck.storage.window import HELD
 
 log = logging.getLogger("plantcheck.scheduler")
 
+QUANTIFIED_CAUSES = frozenset({"stiction", "deadband_backlash"})
+"""Causes whose diagnosis carries an S (and J) estimate for the stiction report."""
+
 
 @dataclass(frozen=True)
 class LoopSchedule:
@@ -57,7 +60,6 @@ class LoopSchedule:
 class LoopJobState:
     """Last outcome of a loop's job (for logging failures once and ``/readyz``)."""
 
-    runs: int = 0
     failing: bool = False
     last_cause: str | None = None
     streak: int = 0
@@ -169,7 +171,7 @@ class DiagnosisScheduler:
 
     async def _diagnose(self, sched: LoopSchedule) -> str:
         row = self._loops.get(sched.name)
-        if row is None or "pv" not in row.tags:
+        if row is None:  # configured after the pool started: map it now
             self._loops = await self.store.loops()
             row = self._loops[sched.name]
         now_us = _now_us()
@@ -213,7 +215,7 @@ class DiagnosisScheduler:
                 notes,
                 quantify,
             )
-        if quantify and payload["cause"] in ("stiction", "deadband_backlash"):
+        if quantify and payload["cause"] in QUANTIFIED_CAUSES:
             st.quantified_at = time.monotonic()
         await self._store(row, payload, start_us, end_us, now_us)
         return str(payload["cause"])
@@ -223,7 +225,7 @@ class DiagnosisScheduler:
     ) -> None:
         cause = str(payload["cause"])
         stiction = payload.get("stiction") or {}
-        S = stiction.get("S") if cause in ("stiction", "deadband_backlash") else None
+        S = stiction.get("S") if cause in QUANTIFIED_CAUSES else None
         J = stiction.get("J") if S is not None else None
         valve = payload.get("valve") or {}
         action = (payload.get("actions") or [action_for(cause, S, J)])[0]
@@ -240,12 +242,9 @@ class DiagnosisScheduler:
             priority=priority_of(cause),
             S=None if S is None else float(S),
             J=None if J is None else float(J),
-            stiction_source="mv"
-            if valve.get("state") in ("stiction", "deadband_backlash")
-            else "op_pv",
+            stiction_source="mv" if valve.get("state") in QUANTIFIED_CAUSES else "op_pv",
         )
         st = self.state[row.name]
-        st.runs += 1
         if cause == st.last_cause:
             st.streak += 1
         else:

@@ -65,9 +65,15 @@ def map_csv(scenario: Scenario) -> str:
     return buf.getvalue()
 
 
-def map_toml(scenario: Scenario, protocol: str = "modbus", source: str | None = None) -> str:
+def map_toml(
+    scenario: Scenario,
+    protocol: str = "modbus",
+    source: str | None = None,
+    poll_interval_s: float | None = None,
+) -> str:
     """``[[source]]`` and ``[[loop]]`` tables of the service configuration for this plant,
-    reading it over Modbus TCP (register addresses) or OPC UA (node ids)."""
+    reading it over Modbus TCP (register addresses) or OPC UA (node ids), with the source's
+    ``poll_interval_s`` (s) when given."""
     name = source or f"sim-{protocol}"
     if protocol == "opcua":
         lines = ["[[source]]", f'name = "{name}"', 'protocol = "opcua"']
@@ -85,6 +91,8 @@ def map_toml(scenario: Scenario, protocol: str = "modbus", source: str | None = 
             f'byte_order = "{m.byte_order}"',
             "",
         ]
+    if poll_interval_s is not None:
+        lines.insert(-1, f"poll_interval_s = {poll_interval_s:g}")
     specs = {spec.id: spec for spec in scenario.loop}
     for e in register_map(scenario):
         spec = specs[e.loop]
