@@ -7,19 +7,23 @@ from pathlib import Path
 
 import pytest
 
-from plantcheck.service.config import load_config
+from plantcheck.service.config import Config, load_config
 from plantcheck.service.toml_config import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def test_readme_example_is_a_valid_configuration(tmp_path: Path) -> None:
-    text = (ROOT / "README.md").read_text()
-    block = re.search(r"```toml\n(\[storage\].*?)```", text, re.S)
-    assert block, "README has no configuration example"
+def readme_config(tmp_path: Path, pattern: str) -> Config:
+    """The README's TOML block matched by ``pattern`` (its first group), loaded."""
+    block = re.search(pattern, (ROOT / "README.md").read_text(), re.S)
+    assert block, f"README has no configuration block matching {pattern!r}"
     path = tmp_path / "plantcheck.toml"
     path.write_text(block.group(1))
-    cfg = load_config(path)
+    return load_config(path)
+
+
+def test_readme_example_is_a_valid_configuration(tmp_path: Path) -> None:
+    cfg = readme_config(tmp_path, r"```toml\n(\[storage\].*?)```")
     assert {s.protocol for s in cfg.source} == {"modbus", "opcua"}
     assert cfg.loop[0].tags()["pv"] == "hr:22:float32"
 
@@ -60,10 +64,5 @@ def test_deploy_example_is_a_valid_configuration() -> None:
 
 
 def test_readme_service_keys_are_valid_configuration(tmp_path: Path) -> None:
-    text = (ROOT / "README.md").read_text()
-    block = re.search(r"```toml\n(\[api\].*?)\[\[loop\]\]", text, re.S)
-    assert block, "README has no service configuration example"
-    path = tmp_path / "plantcheck.toml"
-    path.write_text(block.group(1))
-    cfg = load_config(path)
+    cfg = readme_config(tmp_path, r"```toml\n(\[api\].*?)\[\[loop\]\]")
     assert cfg.scheduler.confirm == 2 and cfg.scheduler.quantify_every_s == 3600
