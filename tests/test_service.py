@@ -237,3 +237,20 @@ def test_page_actions_and_stiction_report(service: Service, tmp_path: Path) -> N
     assert re.search(r'data-loop="FIC102"[^>]*data-rendered="true"', dom) or re.search(
         r'data-rendered="true"[^>]*data-loop="FIC102"', dom
     )
+
+
+def test_port_in_use_refused_with_the_fix(tmp_path: Path, run_cli: RunCli) -> None:
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        cfg = tmp_path / "plantcheck.toml"
+        db = tmp_path / "x.db"
+        cfg.write_text(
+            f'[storage]\nurl = "sqlite+aiosqlite:///{db}"\n[api]\nport = {port}\n', encoding="utf-8"
+        )
+        r = run_cli("run", "--config", str(cfg), "--migrate")
+        assert r.returncode == 2
+        assert f"127.0.0.1:{port}" in r.stderr and "--port" in r.stderr
