@@ -5,10 +5,10 @@ Each loop gets an interval job (its ``period_s``, default 10 min) that reads the
 (``ProcessPoolExecutor``: the event loop that ingests and serves never blocks on numpy) and
 stores the diagnosis, its suggested action and any stiction estimate. The Hammerstein S/J
 estimate (methods §6.1, the costly step: about 0.5 s a window) is made at most every
-``quantify_every_s`` (default 1 h) per loop: enough for a trend over weeks. A loop's verdict (state,
-cause, ``since``) changes only when ``confirm`` consecutive diagnoses (default 2) find the same
-new cause, so one odd window does not flip the health table; every diagnosis is kept in the
-history whatever its cause.
+``quantify_every_s`` (default 1 h) per loop once it was reliable: enough for a trend over
+weeks. A loop's verdict (state, cause, ``since``) changes only when ``confirm`` consecutive
+diagnoses (default 2) find the same new cause, so one odd window does not flip the health
+table; every diagnosis is kept in the history whatever its cause.
 
 The window ends at the loop's newest stored sample (source time), so a plant whose clock runs
 ahead of or behind this server, or an accelerated simulator, is judged on its own time base; when
@@ -66,7 +66,7 @@ class LoopJobState:
     """Consecutive diagnoses that found ``last_cause``."""
     streak_since_us: int = 0
     quantified_at: float = -float("inf")
-    """When (monotonic s) S and J were last estimated for this loop."""
+    """When (monotonic s) S and J were last estimated reliably for this loop."""
 
 
 def _now_us() -> int:
@@ -215,8 +215,8 @@ class DiagnosisScheduler:
                 notes,
                 quantify,
             )
-        if quantify and payload["cause"] in QUANTIFIED_CAUSES:
-            st.quantified_at = time.monotonic()
+        if quantify and (payload.get("stiction") or {}).get("S") is not None:
+            st.quantified_at = time.monotonic()  # an unreliable estimate is tried again next time
         await self._store(row, payload, start_us, end_us, now_us)
         return str(payload["cause"])
 
