@@ -327,9 +327,12 @@ def diagnose_advanced(
     A faulty actuator is the primary verdict (its class is the cause; S and J of a sticky valve
     are measured from MV(OP)). With a healthy valve an oscillating loop is judged for tuning or
     disturbance with stiction excluded. MV in % of travel, NaN = gap.
+
+    The OP/PV stiction tests are not run: MV answers the valve question directly, and the
+    loop-level pass only checks the window, finds the oscillation and splits its cause.
     """
     p = params or ChainParams()
-    std = diagnose(pv, op, ts, sp, auto, loop_type, p, quantify=False)
+    std = diagnose(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True)
     std.chain = "advanced"
     if std.cause in WINDOW_VERDICTS:
         std.notes.append("valve not assessed: the window cannot be judged")
@@ -362,12 +365,4 @@ def diagnose_advanced(
         std.actions = [action_for(std.cause, std.stiction.get("S"), std.stiction.get("J"))]
         return std
     std.stiction["detected"] = False
-    if std.cause == "stiction":
-        healthy = diagnose(
-            pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True
-        )
-        std.cause, std.confidence = healthy.cause, healthy.confidence
-        std.notes.append("the OP/PV tests suggested stiction, but MV follows OP: valve healthy")
-        std.stiction["S"] = std.stiction["J"] = None
-        std.actions = [action_for(std.cause)]
     return std

@@ -9,7 +9,7 @@ of the increments), then:
 - linear fit MV = a + b·OP (gain and offset errors of the positioner calibration);
 - stuck episodes: MV still while OP travels; their OP travel before a breakaway after a reversal
   estimates the stickband S_v, the MV jump at breakaway the slip J_v (Kano et al. 2004);
-- MV-only oscillation (hunting): a regular oscillation of e_v that OP does not have;
+- MV-only oscillation (hunting): power MV has in a frequency band where OP has little;
 - drift of e_v over the window (%/h): air leakage pulls the stem toward the fail position;
 - rate limit: MV speed saturating at its maximum while e_v is large (undersized actuator).
 """
@@ -19,8 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import signal
 
-from plantcheck.diagnosis.oscillation import detect_oscillation
 from plantcheck.diagnosis.signal_tools import FloatArray, fft_ccf, moving_average, noise_sigma
 
 VALVE_STATES = (
@@ -48,6 +48,11 @@ class ValveParams:
     """f_st above this (with S_v above min_stickband) -> friction fault (§7.3)."""
     min_stickband: float = 0.4
     """S_v (% of travel) needed for a friction verdict (§7.3 uses 0.5 %)."""
+    op_smooth_noise: float = 0.1
+    """OP is averaged over as many samples as bring its noise to this (% of travel) before the
+    stuck-episode scan, so that dither around a deadband does not hide the OP travel."""
+    slip_s: float = 2.0
+    """Longest MV slip after a breakaway, s (a positioner spreads the jump over its lag)."""
     slip_ratio: float = 0.25
     """J_v > this × S_v -> stiction; below -> deadband/backlash (§7.3)."""
     bias_limit: float = 1.0
@@ -60,14 +65,20 @@ class ValveParams:
     """|d μ_v/dt| above this (% of travel per hour) -> air leakage."""
     drift_share: float = 0.5
     """... and the drift explains at least this share of the e_v variance."""
-    hunting_amplitude: float = 0.3
+    hunting_amplitude: float = 0.25
     """MV-only oscillation amplitude (% of travel) above which the positioner hunts."""
-    hunting_ratio: float = 0.5
-    """... and at least this share of OP's own oscillation amplitude (MV is the source)."""
+    hunting_ratio: float = 3.0
+    """... where MV has at least this many times OP's power in the band: MV is the source (a
+    lagging or miscalibrated positioner follows OP with a power ratio near or below 1, a sticky
+    valve's square wave reaches ~2 at its harmonics)."""
+    spectrum_segment: int = 256
+    """Welch segment (samples) of the MV and OP spectra for the hunting KPI."""
     rate_share: float = 0.02
     """Share of samples at the MV speed limit (with a large e_v) -> undersized actuator."""
     rate_error: float = 1.0
     """|e_v| (% of travel) that counts as large while MV moves at its limit."""
+    lag_grid_s: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+    """Positioner time constants tried (s) besides none, for the calibration and drift fits."""
     smooth_s: float = 3.0
     """OP and MV are smoothed over this many seconds before the gain/drift regression."""
     speed_window_s: float = 2.0
@@ -98,14 +109,81 @@ def op_mv_delay(op: FloatArray, mv: FloatArray, ts: float, max_delay_s: float) -
     return int(lags[pos][int(np.argmax(c[pos]))])
 
 
-def _stuck_episodes(
-    op: FloatArray, mv: FloatArray, d_mv: float, min_travel: float
-) -> tuple[np.ndarray, np.ndarray, FloatArray, FloatArray, np.ndarray]:
-    """Runs where MV stays within ``d_mv`` of the run start while OP travels ``min_travel``.
+def _first_order_lag(x: FloatArray, tau: float, ts: float) -> FloatArray:
+    """``x`` through a unit-gain first-order lag of time constant ``tau`` (s), started at rest."""
+    if tau <= 0.0:
+        return x
+    a = float(np.exp(-ts / tau))
+    y, _ = signal.lfilter([1.0 - a], [1.0, -a], x, zi=[a * float(x[0])])
+    return np.asarray(y, dtype=np.float64)
 
-    Returns (starts, stops, OP travel in the run, MV jump at the breakaway, reversal flags).
+
+def _power_spectra(x: FloatArray, segment: int) -> FloatArray:
+    """Welch power spectra (squared RMS per bin) of each row of ``x``: Hann segments of
+    ``segment`` samples overlapping by half, each detrended by its least-squares line
+    (scipy.signal.welch(..., detrend="linear", scaling="spectrum"), in one batch)."""
+    step = segment // 2
+    n_seg = 1 + (x.shape[1] - segment) // step
+    idx = np.arange(segment)[None, :] + step * np.arange(n_seg)[:, None]
+    seg = x[:, idx]  # rows x segments x samples
+    t = np.linspace(-1.0, 1.0, segment)
+    seg = seg - seg.mean(axis=2, keepdims=True)
+    seg = seg - np.einsum("rsk,k->rs", seg, t)[..., None] * t / float(t @ t)
+    win = np.hanning(segment + 1)[:-1]  # periodic Hann, as scipy's default
+    spec = np.abs(np.fft.rfft(seg * win, axis=2)) ** 2 / float(win.sum()) ** 2
+    spec[..., 1:] *= 2.0
+    if segment % 2 == 0:
+        spec[..., -1] /= 2.0
+    return np.asarray(spec.mean(axis=1), dtype=np.float64)
+
+
+def mv_only_oscillation(
+    op: FloatArray, mv: FloatArray, segment: int = 256
+) -> tuple[float, float | None, float | None]:
+    """K10 of methods §7.2: the strongest oscillation MV has and OP lacks.
+
+    Welch power spectra (Hann, linear detrend, ``segment`` samples) of OP and MV; in the band
+    (peak bin ± 2) where MV's power exceeds OP's the most, returns the amplitude of that excess
+    (% of travel: sqrt(2·ΣΔP / 1.5), 1.5 = Hann's noise bandwidth in bins), MV's power over OP's
+    in the band, and the band's period (samples). Magnitudes only, so the OP–MV delay does not
+    matter; a positioner that follows OP (lag, gain error) leaves a ratio near 1.
     """
-    n = mv.size
+    n = min(op.size, mv.size)
+    if n < 16:
+        return 0.0, None, None
+    p_op, p_mv = _power_spectra(np.vstack((op[:n], mv[:n])), min(n, segment))
+    f = np.fft.rfftfreq(min(n, segment))
+    excess = p_mv - p_op
+    excess[:2] = 0.0  # drift and the window's mean: air leakage's business, not hunting
+    k = int(np.argmax(excess))
+    if excess[k] <= 0.0:
+        return 0.0, None, None
+    band = slice(max(0, k - 2), min(f.size, k + 3))
+    amp = float(np.sqrt(2.0 * max(0.0, float(excess[band].sum())) / 1.5))
+    ratio = float(p_mv[band].sum() / max(float(p_op[band].sum()), 1e-12))
+    return amp, ratio, float(1.0 / f[k])
+
+
+def _stuck_episodes(
+    op: FloatArray,
+    mv: FloatArray,
+    d_mv: float,
+    min_travel: float,
+    slip_samples: int,
+    op_smooth: FloatArray | None = None,
+) -> tuple[np.ndarray, np.ndarray, FloatArray, FloatArray, np.ndarray]:
+    """Runs where MV stays within ``d_mv`` of the run start while OP travels ``min_travel``
+    (net travel of ``op_smooth``, OP averaged against its noise, when given).
+
+    Returns (starts, stops, OP range in the run, MV slip at the breakaway, reversal flags). The
+    slip is MV's travel beyond OP's over the breakaway's run of same-direction MV steps larger
+    than ``d_mv`` (at most ``slip_samples``): a positioner spreads the jump over a few samples.
+    A sequential scan (each run is anchored at its first sample) on plain floats.
+    """
+    mv_l: list[float] = mv.tolist()
+    op_l: list[float] = op.tolist()
+    os_l: list[float] = op_l if op_smooth is None else op_smooth.tolist()
+    n = len(mv_l)
     starts: list[int] = []
     stops: list[int] = []
     travel: list[float] = []
@@ -115,30 +193,40 @@ def _stuck_episodes(
     k = 0
     while k < n - 1:
         j = k
-        anchor = mv[k]
-        while j + 1 < n and abs(mv[j + 1] - anchor) <= d_mv:
+        anchor = mv_l[k]
+        lo = hi = anchor
+        while j + 1 < n and abs(mv_l[j + 1] - anchor) <= d_mv:
             j += 1
-        if j > k:
+            v = mv_l[j]
+            lo = v if v < lo else lo
+            hi = v if v > hi else hi
+        if j > k and j + 1 < n:
             # net OP travel (ends averaged over 3 samples): noise adds range, not net travel
-            trav = abs(
-                float(np.mean(op[max(k, j - 2) : j + 1]) - np.mean(op[k : min(j + 1, k + 3)]))
-            )
-            mv_trav = float(mv[k : j + 1].max() - mv[k : j + 1].min())
+            e0, e1 = max(k, j - 2), min(j + 1, k + 3)
+            trav = abs(sum(os_l[e0 : j + 1]) / (j + 1 - e0) - sum(os_l[k:e1]) / (e1 - k))
             # OP must travel clearly more than MV: a healthy valve follows OP noise as well
-            if trav >= max(min_travel, 3.0 * mv_trav) and j + 1 < n:
-                after = mv[min(n - 1, j + 3)] - mv[j]
-                direction = float(np.sign(after))
+            if trav >= max(min_travel, 3.0 * (hi - lo)):
+                direction = 1.0 if mv_l[j + 1] > mv_l[j] else -1.0
+                m = j + 1
+                while (
+                    m + 1 < n
+                    and m - j < slip_samples
+                    and (mv_l[m + 1] - mv_l[m]) * direction > d_mv
+                ):
+                    m += 1
+                slip = (mv_l[m] - mv_l[j]) * direction - max(0.0, (op_l[m] - op_l[j]) * direction)
                 starts.append(k)
                 stops.append(j)
                 # the valve breaks away the first time OP is S away from where it stuck: the
                 # OP range in the episode measures S (net travel only decides the episode)
-                travel.append(float(np.ptp(op[k : j + 1])))
-                jumps.append(abs(float(mv[j + 1] - mv[j])))
+                seg = op_l[k : j + 1]
+                travel.append(max(seg) - min(seg))
+                jumps.append(max(0.0, slip))
                 reversal.append(last_dir != 0 and direction != last_dir)
         if j + 1 < n:
-            step = mv[j + 1] - mv[j]
-            if abs(step) > 0:
-                last_dir = float(np.sign(step))
+            step = mv_l[j + 1] - mv_l[j]
+            if step != 0.0:
+                last_dir = 1.0 if step > 0 else -1.0
         k = j + 1
     return (
         np.asarray(starts, dtype=np.intp),
@@ -161,24 +249,40 @@ def valve_kpis(
     mv_d = mv[delay:]
     ev = op_d - mv_d
     n = ev.size
-    t_h = np.arange(n) * ts / 3600.0
     kpis: dict[str, float | int | None] = {"delay_s": delay * ts}
     kpis["bias"] = float(np.mean(ev))
     kpis["dispersion"] = float(np.std(ev))
     kpis["p99_abs_error"] = float(np.percentile(np.abs(ev), 99))
-    # MV = a + b·OP + c·t: gain error (b), and a drift in time (c, %/h) that OP does not explain
-    # smoothed over a few seconds: noise on OP would bias the gain low (errors in variables)
+    # MV = a + b·lag(OP) + c·t: gain error (b), and a drift in time (c, %/h) that OP does not
+    # explain. OP passes through the positioner's first-order lag (K4, fitted on a grid of time
+    # constants): in a fast oscillating loop the lag would otherwise read as a gain below 1.
+    # Smoothed over a few seconds: noise on OP would bias the gain low (errors in variables).
+    # The lag is fitted on the raw pair as well as the delay-aligned one: the cross-correlation
+    # delay takes up a lag's phase but not its attenuation.
     w = max(5, round(p.smooth_s / ts))
-    op_s = moving_average(op_d, w)
-    mv_s = moving_average(mv_d, w)
-    span = float(np.ptp(op_s))
-    use_gain = span >= p.gain_min_span
-    cols = [np.ones(n), t_h] + ([op_s] if use_gain else [])
-    reg = np.column_stack(cols)
-    target = mv_s if use_gain else mv_s - op_s
-    coef, *_ = np.linalg.lstsq(reg, target, rcond=None)
+    best: tuple[float, float, np.ndarray, np.ndarray, np.ndarray] | None = None
+    pairs = [(op_d, mv_d)] + ([(op, mv)] if delay else [])
+    for op_x, mv_x in pairs:
+        op_s = moving_average(op_x, w)
+        mv_s = moving_average(mv_x, w)
+        use_gain = float(np.ptp(op_s)) >= p.gain_min_span
+        t_x = np.arange(op_s.size) * ts / 3600.0
+        for tau in (0.0, *p.lag_grid_s):
+            if 0.0 < tau < 0.1 * ts:
+                continue
+            op_l = _first_order_lag(op_s, tau, ts)
+            reg_l = np.column_stack([np.ones(op_s.size), t_x] + ([op_l] if use_gain else []))
+            target_l = mv_s if use_gain else mv_s - op_l
+            coef_l, *_ = np.linalg.lstsq(reg_l, target_l, rcond=None)
+            sse = float(np.mean((target_l - reg_l @ coef_l) ** 2))
+            if best is None or sse < best[0]:
+                best = (sse, tau, reg_l, target_l, coef_l)
+    assert best is not None
+    _, tau_best, reg, target, coef = best
+    kpis["lag_s"] = tau_best
+    use_gain = reg.shape[1] == 3
     kpis["gain"] = float(coef[2]) if use_gain else None
-    kpis["drift_per_hour"] = -float(coef[1]) if t_h[-1] > 0 else 0.0  # + = MV falls behind
+    kpis["drift_per_hour"] = -float(coef[1]) if reg[-1, 1] > 0 else 0.0  # + = MV falls behind
     resid_full = target - reg @ coef
     reg0 = reg[:, [0, *range(2, reg.shape[1])]]
     coef0, *_ = np.linalg.lstsq(reg0, target, rcond=None)
@@ -188,8 +292,12 @@ def valve_kpis(
     kpis["residual_std"] = float(np.std(resid_full))
     # stuck episodes -> stuck fraction, S_v, J_v
     d_mv = max(p.resolution, 3.0 * noise_sigma(mv_d))
-    min_trav = max(p.stuck_min_travel, 3.0 * noise_sigma(op_d))
-    st, sp_, trav, jump, rev = _stuck_episodes(op_d, mv_d, d_mv, min_trav)
+    sig_op = noise_sigma(op_d)
+    w_op = int(np.clip(round((sig_op / p.op_smooth_noise) ** 2), 1, 15))
+    op_e = moving_average(op_d, w_op) if w_op > 1 else op_d
+    min_trav = max(p.stuck_min_travel, 3.0 * sig_op / np.sqrt(w_op))
+    slip_n = max(1, round(p.slip_s / ts))
+    st, sp_, trav, jump, rev = _stuck_episodes(op_d, mv_d, d_mv, min_trav, slip_n, op_e)
     moving_op = np.abs(np.diff(op_d)) > 0.5 * p.resolution
     stuck_mask = np.zeros(n - 1, dtype=bool)
     for a_, b_ in zip(st.tolist(), sp_.tolist(), strict=True):
@@ -201,20 +309,11 @@ def valve_kpis(
     j_v = float(np.median(jump[rev])) if rev.any() else None
     kpis["S_v"] = s_v
     kpis["J_v"] = j_v
-    # hunting: a regular oscillation of e_v beyond what a positioner lag explains
-    # (a first-order lag gives e_v ≈ τ·dOP/dt)
-    dop = np.gradient(op_s)
-    den_l = float(dop @ dop)
-    lag_fit = float((ev - ev.mean()) @ dop) / den_l if den_l > 0 else 0.0
-    e_res = ev - ev.mean() - lag_fit * dop
-    ev_osc = detect_oscillation(e_res, ts)
-    mv_only = float(ev_osc.amplitude or 0.0) if ev_osc.oscillating else 0.0
+    # hunting (K10): power MV has in a band where OP has little (delay-free amplitude spectra)
+    mv_only, ratio, period = mv_only_oscillation(op_d, mv_d, p.spectrum_segment)
     kpis["mv_only_oscillation"] = mv_only
-    # a hunting positioner is the source of the cycle: its residual is large next to OP's own
-    # oscillation; a healthy positioner in an oscillating loop leaves a small lag residual
-    op_osc = detect_oscillation(op_s, ts)
-    op_amp = float(op_osc.amplitude or 0.0) if op_osc.oscillating else 0.0
-    kpis["mv_only_ratio"] = mv_only / op_amp if op_amp > 0 else None
+    kpis["mv_only_ratio"] = ratio
+    kpis["mv_only_period_s"] = period * ts if period is not None else None
     # rate limit: MV speed (over ~2 s, above the sensor noise) pinned at its maximum while
     # the error is large and MV moves toward OP
     wr = max(2, round(p.speed_window_s / ts))
@@ -255,6 +354,8 @@ def classify_valve(
     hunting = float(kpis["mv_only_oscillation"] or 0.0)
     rate_share = float(kpis["rate_limited_share"] or 0.0)
     friction = f_st > p.stuck_fraction and s_v is not None and s_v > p.min_stickband
+    ratio = kpis["mv_only_ratio"]
+    hunts = hunting > p.hunting_amplitude and ratio is not None and float(ratio) > p.hunting_ratio
     saturated = float(kpis["speed_saturation"] or 0.0) > p.speed_saturation
     if rate_share > p.rate_share and saturated:
         reasons.append(
@@ -262,12 +363,14 @@ def classify_valve(
             f"{100 * rate_share:.1f} % of the time"
         )
         return ValveAssessment("actuator_undersized", kpis, None, None, reasons)
-    if abs(drift) > p.drift_limit and drift_share > p.drift_share:
+    # friction and hunting move MV on their own: the static fits below (drift, calibration)
+    # read their cycles as a trend or a map error, so they must not be behind those verdicts
+    if abs(drift) > p.drift_limit and drift_share > p.drift_share and not (friction or hunts):
         reasons.append(f"e_v drifts {drift:+.2f} %/h ({100 * drift_share:.0f} % of its variance)")
         return ValveAssessment("air_leakage", kpis, None, None, reasons)
     gain_bad = gain is not None and abs(float(gain) - 1.0) > p.gain_limit
     steady = float(kpis["residual_std"] or 0.0) < p.calibration_scatter
-    if (abs(bias) > p.bias_limit or gain_bad) and steady and not friction:
+    if (abs(bias) > p.bias_limit or gain_bad) and steady and not (friction or hunts):
         reasons.append(
             f"positioner calibration: bias {bias:+.2f} %"
             + (f", gain {float(gain):.3f}" if gain is not None else "")
@@ -279,8 +382,11 @@ def classify_valve(
             return ValveAssessment("stiction", kpis, s_v, j_v, reasons)
         reasons.append(f"deadband without slip: S_v = {s_v:.2f} %, J_v = {j_v or 0:.2f} %")
         return ValveAssessment("deadband_backlash", kpis, s_v, j_v, reasons)
-    ratio = kpis["mv_only_ratio"]
-    if hunting > p.hunting_amplitude and (ratio is None or float(ratio) > p.hunting_ratio):
-        reasons.append(f"MV oscillates on its own (amplitude {hunting:.2f} %)")
+    if hunts and ratio is not None:
+        period = kpis["mv_only_period_s"]
+        reasons.append(
+            f"MV oscillates on its own: amplitude {hunting:.2f} %, period {period:.1f} s, "
+            f"{float(ratio):.0f}x OP's power in that band"
+        )
         return ValveAssessment("positioner_tuning", kpis, None, None, reasons)
     return ValveAssessment("ok", kpis, None, None, reasons)

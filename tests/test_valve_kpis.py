@@ -1,8 +1,8 @@
 """Actuator KPIs and classification (methods.md §7.2–7.3) on generated actuator cases.
 
-Work in progress for issue 4: the floors below are under the measured figures (latest run,
-seed 1, 12 cases per class: every fault class 10–12 of 12, healthy valves 33 of 36); the combined
-chain and its targets (90 % per class, 95 % healthy) are not reached yet.
+The floors are issue 4's targets: every class on at least 90 % of its cases, healthy valves
+`ok` on at least 95 % (seed 1, 12 cases per class; benchmarks/advanced_accuracy.py runs more
+seeds and the whole chain).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import collections
 import numpy as np
 import pytest
 
-from plantcheck.diagnosis.valve_kpis import VALVE_STATES, classify_valve
+from plantcheck.diagnosis.valve_kpis import VALVE_STATES, classify_valve, mv_only_oscillation
 from plantcheck.simulator.cases import generate_actuator_cases
 from plantcheck.simulator.loop import simulate_loop
 
@@ -34,7 +34,7 @@ def test_each_actuator_state_mostly_recognised(
 ) -> None:
     total = sum(v for (a, _), v in confusion.items() if a == state)
     assert total > 0
-    assert confusion[(state, state)] / total >= 0.75
+    assert confusion[(state, state)] / total >= (0.95 if state == "ok" else 0.9)
 
 
 def test_stiction_measured_from_mv() -> None:
@@ -46,6 +46,27 @@ def test_stiction_measured_from_mv() -> None:
         if va.state == "stiction":
             assert va.S is not None and c.S is not None
             assert abs(va.S - c.S) <= max(0.3, 0.2 * c.S)
+
+
+def test_hunting_is_power_mv_has_and_op_lacks() -> None:
+    """K10: a positioner cycling on its own against one that only lags OP."""
+    rng = np.random.default_rng(3)
+    n, ts = 3600, 1.0
+    op = 50 + np.cumsum(rng.normal(0, 0.1, n)) + 3 * np.sin(2 * np.pi * np.arange(n) / 60)
+    a = np.exp(-ts / 2.0)
+    lagged = np.empty(n)
+    lagged[0] = op[0]
+    for k in range(1, n):
+        lagged[k] = a * lagged[k - 1] + (1 - a) * op[k]
+    amp, ratio, _ = mv_only_oscillation(op, lagged)
+    assert amp < 0.1 and (ratio is None or ratio < 1.5)
+    hunting = lagged + 0.8 * np.sin(2 * np.pi * np.arange(n) / 7.0)
+    amp, ratio, period = mv_only_oscillation(op, hunting)
+    assert abs(amp - 0.8) < 0.2 and ratio is not None and ratio > 10
+    assert period is not None and abs(period - 7.0) < 0.5
+    va = classify_valve(op, hunting + rng.normal(0, 0.03, n), ts)
+    assert va.state == "positioner_tuning", va.reasons
+    assert classify_valve(op, lagged + rng.normal(0, 0.03, n), ts).state == "ok"
 
 
 def test_frozen_mv_is_a_data_problem() -> None:
