@@ -76,6 +76,10 @@ class SchedulerConfig(_Strict):
     """Consecutive diagnoses that must agree on a new cause before a loop's state changes."""
     quantify_every_s: float = Field(3600.0, ge=0)
     """Shortest time between two S/J estimates of one valve (0: every diagnosis)."""
+    window_cache_mb: float = Field(256.0, ge=0)
+    """Memory for the loops' rolling windows kept between diagnoses, MB (each run then reads
+    only the new samples; about 0.3 MB per loop for a 2-h window at 1 s; 0: read every window
+    whole)."""
 
 
 class SourceConfig(_Strict):

@@ -7,6 +7,7 @@
 - ``plantcheck_diagnosis_duration_seconds``: read + diagnose + store time per loop window.
 - ``plantcheck_loops``: loops per state (``ok``, ``warning``, ``fault``, ``unknown``).
 - ``plantcheck_diagnoses_total``: diagnoses by outcome (``done``, ``failed``).
+- ``plantcheck_window_cache_bytes``: memory held by the scheduler's rolling windows.
 """
 
 from __future__ import annotations
@@ -51,6 +52,11 @@ class ServiceMetrics:
             "plantcheck_diagnoses", "Loop windows diagnosed.", ["outcome"], registry=r
         )
         self.loops = Gauge("plantcheck_loops", "Loops per state.", ["state"], registry=r)
+        self.window_cache_bytes = Gauge(
+            "plantcheck_window_cache_bytes",
+            "Memory held by the rolling windows kept between diagnoses.",
+            registry=r,
+        )
         for s in STATES:
             self.loops.labels(s).set(0)
         self._received: deque[tuple[float, int]] = deque()

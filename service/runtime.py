@@ -62,6 +62,7 @@ class Runtime:
                     metrics,
                     confirm=cfg.scheduler.confirm,
                     quantify_every_s=cfg.scheduler.quantify_every_s,
+                    window_cache_mb=cfg.scheduler.window_cache_mb,
                 )
                 await sched.start()
             metrics.set_loop_states(await count_loops_by_state(ing.store))

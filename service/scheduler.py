@@ -10,11 +10,12 @@ weeks. A loop's verdict (state, cause, ``since``) changes only when ``confirm`` 
 diagnoses (default 2) find the same new cause, so one odd window does not flip the health
 table; every diagnosis is kept in the history whatever its cause.
 
-The window ends at the loop's newest stored sample (source time), so a plant whose clock runs
-ahead of or behind this server, or an accelerated simulator, is judged on its own time base; when
-the newest sample is older than a whole window, the window ends now and the chain reports the
-missing data. One scheduler per deployment: two ``plantcheck run`` processes on one database
-would diagnose every loop twice.
+Windows are kept in memory between runs (``storage.window_cache``): a run reads only the
+samples stored since the last one. The window ends at the loop's newest stored sample (source
+time), so a plant whose clock runs ahead of or behind this server, or an accelerated simulator,
+is judged on its own time base; when the newest sample is older than a whole window, the window
+ends now and the chain reports the missing data. One scheduler per deployment: two
+``plantcheck run`` processes on one database would diagnose every loop twice.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from plantcheck.service.window_diagnosis import diagnose_window
 from plantcheck.storage.results import Verdict, count_loops_by_state, record_verdict
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
+from plantcheck.storage.window_cache import WindowCache
 
 log = logging.getLogger("plantcheck.scheduler")
 
@@ -89,6 +91,7 @@ class DiagnosisScheduler:
         first_run_within_s: float = 30.0,
         confirm: int = 2,
         quantify_every_s: float = 3600.0,
+        window_cache_mb: float = 256.0,
     ) -> None:
         self.store = store
         self.schedules = {s.name: s for s in schedules}
@@ -103,6 +106,8 @@ class DiagnosisScheduler:
         self._slots = asyncio.Semaphore(workers)
         self._reads = asyncio.Semaphore(workers + 1)
         self._loops: dict[str, LoopRow] = {}
+        longest = max((s.window_s for s in schedules), default=3600.0)
+        self.windows = WindowCache(store, int(window_cache_mb * 2**20), refresh_s=longest)
 
     @property
     def running(self) -> bool:
@@ -195,7 +200,8 @@ class DiagnosisScheduler:
                     f"so far (configured {sched.window_s:g} s)"
                 )
         async with self._reads:  # windows read ahead while the workers diagnose
-            win = await self.store.read_window(row, start_us, end_us, hold=sched.hold)
+            win = await self.windows.read_window(row, start_us, end_us, sched.hold)
+        self.metrics.window_cache_bytes.set(self.windows.nbytes)
         values = {k: v for k, v in win.values.items() if k in win.signals or k in ("pv", "op")}
         st = self.state[sched.name]
         quantify = time.monotonic() - st.quantified_at >= self.quantify_every_s

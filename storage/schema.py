@@ -66,6 +66,9 @@ samples = Table(
     Column("recv_us", BigInteger, nullable=False),
     Column("value", Float, nullable=True),
     Column("status", BigInteger, nullable=False, default=0),
+    # SQLite: rows clustered on (tag_id, ts_us), so a window of one tag is one sequential range
+    # scan instead of a table lookup per row (rows of all tags arrive interleaved in time)
+    sqlite_with_rowid=False,
 )
 
 diagnoses = Table(

@@ -224,11 +224,11 @@ class Store:
         """The loop's SP/PV/OP/MV/mode over [start, end) on one time base with the coverage
         of good samples (Bad and missing samples are NaN; ``hold`` signals keep their last
         value)."""
-        series = await self._read_series(loop, start_us, end_us)
-        before = await self._last_before(loop, start_us, hold)
+        series = await self.read_series(loop, start_us, end_us)
+        before = await self.last_before(loop, start_us, hold)
         return align(series, start_us, end_us, sample_time_s, before, hold)
 
-    async def _read_series(
+    async def read_series(
         self, loop: LoopRow, start_us: int, end_us: int
     ) -> dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]]:
         """Per signal: (source timestamps µs, values with NaN for Bad) in [start, end).
@@ -237,32 +237,41 @@ class Store:
         driver's own connection, rows straight into numpy (no ORM rows).
         """
         out: dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
+        if not loop.tags:
+            return out
+        ids = sorted(loop.tags.values())
         async with self.engine.connect() as conn:
             raw = await conn.get_raw_connection()
             driver: Any = raw.driver_connection
-            for sig, tag_id in loop.tags.items():
-                if self.dialect == "postgresql":
-                    rows = await driver.fetch(
-                        "SELECT ts_us, value FROM samples WHERE tag_id = $1 AND ts_us >= $2 "
-                        "AND ts_us < $3 ORDER BY ts_us",
-                        tag_id,
-                        start_us,
-                        end_us,
-                    )
-                    rows = [tuple(r) for r in rows]
-                else:
-                    rows = await driver.execute_fetchall(
-                        "SELECT ts_us, value FROM samples WHERE tag_id = ? AND ts_us >= ? "
-                        "AND ts_us < ? ORDER BY ts_us",
-                        (tag_id, start_us, end_us),
-                    )
-                if rows:
-                    a = np.array(rows, dtype=np.float64)  # None (Bad) becomes NaN
-                    t = np.array([r[0] for r in rows], dtype=np.int64)
-                    out[sig] = (t, a[:, 1])
+            # one statement for all the loop's tags (one range scan each, in tag order)
+            if self.dialect == "postgresql":
+                rows = await driver.fetch(
+                    "SELECT tag_id, ts_us, value FROM samples WHERE tag_id = ANY($1::int[]) "
+                    "AND ts_us >= $2 AND ts_us < $3 ORDER BY tag_id, ts_us",
+                    ids,
+                    start_us,
+                    end_us,
+                )
+                rows = [tuple(r) for r in rows]
+            else:
+                marks = ",".join("?" * len(ids))
+                rows = await driver.execute_fetchall(
+                    f"SELECT tag_id, ts_us, value FROM samples WHERE tag_id IN ({marks}) "
+                    "AND ts_us >= ? AND ts_us < ? ORDER BY tag_id, ts_us",
+                    (*ids, start_us, end_us),
+                )
+        if not rows:
+            return out
+        a = np.array(rows, dtype=np.float64)  # None (Bad) becomes NaN
+        tag = a[:, 0].astype(np.int64)
+        t = np.fromiter((r[1] for r in rows), dtype=np.int64, count=len(rows))  # exact µs
+        for sig, tag_id in loop.tags.items():
+            lo, hi = np.searchsorted(tag, [tag_id, tag_id + 1])
+            if hi > lo:
+                out[sig] = (t[lo:hi], a[lo:hi, 2])
         return out
 
-    async def _last_before(
+    async def last_before(
         self, loop: LoopRow, at_us: int, signals: Sequence[str]
     ) -> dict[str, float]:
         """The last stored value of each of ``signals`` before ``at_us`` (NaN when Bad)."""

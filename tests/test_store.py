@@ -109,3 +109,31 @@ def test_db_upgrade_and_import_cli(tmp_path: Path, run_cli) -> None:  # type: ig
     bad.write_text('[storage]\nurl = "mysql://x"\n')
     r = run_cli("db", "upgrade", "--config", str(bad))
     assert r.returncode == 2 and f"{bad}:2: storage.url" in r.stderr
+
+
+def test_upgrade_clusters_an_existing_sqlite_samples_table(tmp_path: Path) -> None:
+    """Migration 0002 rebuilds a rowid samples table (made before it) and keeps every row."""
+    import sqlite3
+
+    from alembic import command
+
+    from plantcheck.storage.database import alembic_config, upgrade
+
+    path = tmp_path / "old.db"
+    url = f"sqlite+aiosqlite:///{path}"
+    upgrade(url)
+    command.downgrade(alembic_config(url), "0001")  # the samples table as 0001 first made it
+    con = sqlite3.connect(path)
+    sql = con.execute("SELECT sql FROM sqlite_master WHERE name = 'samples'").fetchone()[0]
+    assert "WITHOUT ROWID" not in sql.upper()
+    rows = [(k % 3 + 1, T0 + k, T0 + k, float(k), 0) for k in range(1000)]
+    con.executemany("INSERT INTO samples VALUES (?, ?, ?, ?, ?)", rows)
+    con.commit()
+    con.close()
+    upgrade(url)
+    con = sqlite3.connect(path)
+    sql = con.execute("SELECT sql FROM sqlite_master WHERE name = 'samples'").fetchone()[0]
+    assert "WITHOUT ROWID" in sql.upper()
+    got = con.execute("SELECT * FROM samples ORDER BY ts_us").fetchall()
+    con.close()
+    assert got == rows

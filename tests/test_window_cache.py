@@ -1,0 +1,98 @@
+"""Rolling windows kept between diagnoses give exactly the windows a whole read gives."""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+
+from plantcheck.service.config import Config, LoopConfig, SourceConfig
+from plantcheck.storage.samples import Sample
+from plantcheck.storage.status_codes import GOOD
+from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.window import LoopWindow
+from plantcheck.storage.window_cache import WindowCache, merge_tail, trim_head
+
+T0 = 1_767_225_600_000_000  # 2026-01-01T00:00:00Z in µs
+S = 1_000_000
+HOLD = ("sp", "mode")
+
+
+def _cfg() -> Config:
+    return Config(
+        source=[SourceConfig(name="plc", protocol="modbus", port=5020)],
+        loop=[
+            LoopConfig(id="FIC1", type="flow", source="plc", sp="hr:10:float32",
+                       pv="hr:12:float32", op="hr:14:float32")
+        ],
+    )  # fmt: skip
+
+
+def _samples(lp: LoopRow, ks: range) -> list[Sample]:
+    rows = []
+    for k in ks:
+        t = T0 + k * S
+        rows.append(Sample(lp.tags["pv"], t, t, 50.0 + np.sin(k / 9.0), GOOD))
+        rows.append(Sample(lp.tags["op"], t, t, 40.0 + k % 11, GOOD))
+        if k % 250 == 0:  # a set point reported on change only
+            rows.append(Sample(lp.tags["sp"], t, t, 50.0 + k / 250, GOOD))
+    return rows
+
+
+def _same(a: LoopWindow, b: LoopWindow) -> None:
+    assert a.start_us == b.start_us and a.signals == b.signals
+    for sig in ("sp", "pv", "op", "mv", "mode"):
+        np.testing.assert_array_equal(a[sig], b[sig])
+
+
+def test_merge_and_trim() -> None:
+    t = np.arange(10, dtype=np.int64)
+    cached = {"pv": (t, t * 1.0), "sp": (np.array([2, 7]), np.array([1.0, 2.0]))}
+    fresh = {"pv": (np.array([8, 9, 10]), np.array([80.0, 90.0, 100.0]))}
+    m = merge_tail(cached, fresh, 8)
+    assert m["pv"][0].tolist() == list(range(11)) and m["pv"][1][-3:].tolist() == [80, 90, 100]
+    assert m["sp"][0].tolist() == [2, 7]  # before 8 kept; the store had none from 8 on
+    tr, before = trim_head(m, {}, 5, HOLD)
+    assert tr["pv"][0][0] == 5 and before == {"sp": 1.0}
+
+
+def test_cached_windows_equal_whole_reads(db_url: str) -> None:
+    async def body() -> None:
+        store = await Store.open(db_url)
+        try:
+            lp = (await store.sync_config(_cfg()))["FIC1"]
+            cache = WindowCache(store, lookback_s=60, refresh_s=3600)
+            await store.write_samples(_samples(lp, range(0, 1200)))
+            window = 600 * S
+            for end_k in (1200, 1500, 1800, 2400):
+                if end_k > 1200:
+                    await store.write_samples(_samples(lp, range(end_k - 300, end_k)))
+                if end_k == 1800:  # a late sample inside the look-back replaces the cached one
+                    t = T0 + 1790 * S
+                    await store.write_samples([Sample(lp.tags["pv"], t, t, 99.0, GOOD)])
+                end = T0 + end_k * S
+                got = await cache.read_window(lp, end - window, end, HOLD)
+                _same(got, await store.read_window(lp, end - window, end, hold=HOLD))
+            assert cache.full_reads == 1 and cache.tail_reads == 3
+            assert 0 < cache.nbytes < 600 * 3 * 16 + 1024
+            # a sample written late, before the look-back: seen after the next full read
+            t = T0 + 1900 * S
+            await store.write_samples([Sample(lp.tags["op"], t, t, None, GOOD)])
+            end = T0 + 2400 * S
+            refreshing = WindowCache(store, lookback_s=60, refresh_s=0)
+            await refreshing.read_window(lp, end - window, end, HOLD)
+            got = await refreshing.read_window(lp, end - window, end, HOLD)
+            _same(got, await store.read_window(lp, end - window, end, hold=HOLD))
+            assert refreshing.full_reads == 2
+            # no room: every read is whole, nothing kept
+            tiny = WindowCache(store, max_bytes=0)
+            for _ in range(2):
+                _same(
+                    await tiny.read_window(lp, end - window, end, HOLD),
+                    await store.read_window(lp, end - window, end, hold=HOLD),
+                )
+            assert tiny.full_reads == 2 and len(tiny) == 0 and tiny.nbytes == 0
+        finally:
+            await store.close()
+
+    asyncio.run(body())
