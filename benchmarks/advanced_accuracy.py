@@ -63,7 +63,15 @@ def main() -> None:
     for line in worse:
         print(f"  {line}")
     if s_err:
-        print(f"S from MV: median |error| {np.median(s_err):.2f} % of travel (n = {len(s_err)})")
+        print(
+            f"S from MV: median |error| {np.median(s_err):.2f} %, 90th percentile "
+            f"{np.percentile(s_err, 90):.2f} % of travel (n = {len(s_err)})"
+        )
+    predicted = sorted({b for _, b in adv})
+    print("\nadvanced chain, true cause (rows) x predicted (columns):")
+    print(" " * 22 + " ".join(f"{b[:9]:>9s}" for b in predicted))
+    for a in sorted({a for a, _ in adv}):
+        print(f"{a:22s}" + " ".join(f"{adv[(a, b)]:9d}" for b in predicted))
 
 
 if __name__ == "__main__":

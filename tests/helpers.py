@@ -6,7 +6,23 @@ import socket
 import subprocess
 from collections.abc import Callable
 
+from plantcheck.service.config import Config, LoopConfig, SourceConfig
+
 RunCli = Callable[..., subprocess.CompletedProcess[str]]
+
+T0 = 1_767_225_600_000_000
+"""2026-01-01T00:00:00Z in µs: the start of the store tests' samples."""
+
+
+def one_loop_config() -> Config:
+    """One flow loop FIC1 (SP, PV, OP) on a Modbus source: the store tests' configuration."""
+    return Config(
+        source=[SourceConfig(name="plc", protocol="modbus", port=5020)],
+        loop=[
+            LoopConfig(id="FIC1", type="flow", source="plc", sp="hr:10:float32",
+                       pv="hr:12:float32", op="hr:14:float32")
+        ],
+    )  # fmt: skip
 
 
 def free_port() -> int:

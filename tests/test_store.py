@@ -7,31 +7,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import T0, one_loop_config
 
-from plantcheck.service.config import Config, LoopConfig, SourceConfig
 from plantcheck.storage.database import StorageError
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.status_codes import BAD_SENSOR_FAILURE, GOOD
 from plantcheck.storage.store import Store
-
-T0 = 1_767_225_600_000_000  # 2026-01-01T00:00:00Z in µs
-
-
-def _cfg() -> Config:
-    return Config(
-        source=[SourceConfig(name="plc", protocol="modbus", port=5020)],
-        loop=[
-            LoopConfig(id="FIC1", type="flow", source="plc", sp="hr:10:float32",
-                       pv="hr:12:float32", op="hr:14:float32")
-        ],
-    )  # fmt: skip
 
 
 def test_write_read_window_idempotent_and_bad_is_null(db_url: str) -> None:
     async def body() -> None:
         store = await Store.open(db_url)
         try:
-            loops = await store.sync_config(_cfg())
+            loops = await store.sync_config(one_loop_config())
             lp = loops["FIC1"]
             assert set(lp.tags) == {"sp", "pv", "op"}
             n = 600

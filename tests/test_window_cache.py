@@ -5,27 +5,16 @@ from __future__ import annotations
 import asyncio
 
 import numpy as np
+from helpers import T0, one_loop_config
 
-from plantcheck.service.config import Config, LoopConfig, SourceConfig
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.status_codes import GOOD
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import LoopWindow
 from plantcheck.storage.window_cache import WindowCache, merge_tail, trim_head
 
-T0 = 1_767_225_600_000_000  # 2026-01-01T00:00:00Z in µs
 S = 1_000_000
 HOLD = ("sp", "mode")
-
-
-def _cfg() -> Config:
-    return Config(
-        source=[SourceConfig(name="plc", protocol="modbus", port=5020)],
-        loop=[
-            LoopConfig(id="FIC1", type="flow", source="plc", sp="hr:10:float32",
-                       pv="hr:12:float32", op="hr:14:float32")
-        ],
-    )  # fmt: skip
 
 
 def _samples(lp: LoopRow, ks: range) -> list[Sample]:
@@ -60,7 +49,7 @@ def test_cached_windows_equal_whole_reads(db_url: str) -> None:
     async def body() -> None:
         store = await Store.open(db_url)
         try:
-            lp = (await store.sync_config(_cfg()))["FIC1"]
+            lp = (await store.sync_config(one_loop_config()))["FIC1"]
             cache = WindowCache(store, lookback_s=60, refresh_s=3600)
             await store.write_samples(_samples(lp, range(0, 1200)))
             window = 600 * S
