@@ -170,10 +170,10 @@ def _stuck_episodes(
     d_mv: float,
     min_travel: float,
     slip_samples: int,
-    op_smooth: FloatArray | None = None,
+    op_smooth: FloatArray,
 ) -> tuple[np.ndarray, np.ndarray, FloatArray, FloatArray, np.ndarray]:
     """Runs where MV stays within ``d_mv`` of the run start while OP travels ``min_travel``
-    (net travel of ``op_smooth``, OP averaged against its noise, when given).
+    (net travel of ``op_smooth``, OP averaged against its noise).
 
     Returns (starts, stops, OP range in the run, MV slip at the breakaway, reversal flags). The
     slip is MV's travel beyond OP's over the breakaway's run of same-direction MV steps larger
@@ -182,7 +182,7 @@ def _stuck_episodes(
     """
     mv_l: list[float] = mv.tolist()
     op_l: list[float] = op.tolist()
-    os_l: list[float] = op_l if op_smooth is None else op_smooth.tolist()
+    os_l: list[float] = op_smooth.tolist()
     n = len(mv_l)
     starts: list[int] = []
     stops: list[int] = []

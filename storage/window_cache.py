@@ -130,9 +130,3 @@ class WindowCache:
         while self._loops and self.nbytes > self.max_bytes:
             self.nbytes -= self._loops.popitem(last=False)[1].nbytes
         return align(c.series, start_us, end_us, None, c.before, hold)
-
-    def forget(self, name: str) -> None:
-        """Drop a loop's cached window (its next read is a full one)."""
-        c = self._loops.pop(name, None)
-        if c is not None:
-            self.nbytes -= c.nbytes
