@@ -45,6 +45,10 @@ def test_readme_example_is_a_valid_configuration(tmp_path: Path) -> None:
         ('[[source]]\nname = "u"\nprotocol = "opcua"\n', ": source[0]: Value error, source 'u'"),
         ("[storage]\nurl = 'mysql://x'\n", ":2: storage.url: Value error, expected sqlite"),
         ("[storage\n", ":1: syntax: not valid TOML"),
+        (
+            "[scheduler]\nwindow_cache_mb = -5\n",
+            ":2: scheduler.window_cache_mb: Input should be greater than or equal to 0",
+        ),
     ],
 )
 def test_bad_configuration_is_refused_with_line_and_key(
@@ -66,3 +70,4 @@ def test_deploy_example_is_a_valid_configuration() -> None:
 def test_readme_service_keys_are_valid_configuration(tmp_path: Path) -> None:
     cfg = readme_config(tmp_path, r"```toml\n(\[api\].*?)\[\[loop\]\]")
     assert cfg.scheduler.confirm == 2 and cfg.scheduler.quantify_every_s == 3600
+    assert cfg.scheduler.window_cache_mb == 256
