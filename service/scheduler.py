@@ -4,11 +4,15 @@ Each loop gets an interval job (its ``period_s``, default 10 min) that reads the
 ``window_s`` seconds (default 2 h) from the store, runs the diagnosis chain in a worker process
 (``ProcessPoolExecutor``: the event loop that ingests and serves never blocks on numpy) and
 stores the diagnosis, its suggested action and any stiction estimate. The Hammerstein S/J
-estimate (methods §6.1, the costly step: about 0.5 s a window) is made at most every
+estimate (methods §6.1, the costly step: about 0.5-1 s a window) is made at most every
 ``quantify_every_s`` (default 1 h) per loop once it was reliable: enough for a trend over
-weeks. A loop's verdict (state, cause, ``since``) changes only when ``confirm`` consecutive
-diagnoses (default 2) find the same new cause, so one odd window does not flip the health
-table; every diagnosis is kept in the history whatever its cause.
+weeks. An estimate that fails the reliability rules is tried again after one period, then after
+twice as long each time, up to ``quantify_every_s``: a valve whose estimate stays unreliable
+costs one attempt an hour, not one every run. A loop's verdict (state, cause, ``since``)
+changes only when ``confirm`` consecutive diagnoses (default 2) find the same new cause, so one
+odd window does not flip the health table; every diagnosis is kept in the history whatever its
+cause. Verdicts are committed in batches (``storage.verdict_writer``: the verdicts of a quarter
+second in one transaction).
 
 Windows are kept in memory between runs (``storage.window_cache``): a run reads only the
 samples stored since the last one. The window ends at the loop's newest stored sample (source
@@ -34,8 +38,9 @@ from apscheduler.schedulers.asyncio import AsyncIOScheduler
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
-from plantcheck.storage.results import Verdict, count_loops_by_state, record_verdict
+from plantcheck.storage.results import PendingVerdict, Verdict, count_loops_by_state
 from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.verdict_writer import VerdictWriter
 from plantcheck.storage.window import HELD
 from plantcheck.storage.window_cache import WindowCache
 
@@ -67,8 +72,10 @@ class LoopJobState:
     streak: int = 0
     """Consecutive diagnoses that found ``last_cause``."""
     streak_since_us: int = 0
-    quantified_at: float = -float("inf")
-    """When (monotonic s) S and J were last estimated reliably for this loop."""
+    quantify_due: float = -float("inf")
+    """When (monotonic s) S and J may next be estimated for this loop."""
+    quantify_backoff_s: float = 0.0
+    """Wait after the last unreliable estimate (0 after a reliable one)."""
 
 
 def _now_us() -> int:
@@ -108,6 +115,7 @@ class DiagnosisScheduler:
         self._loops: dict[str, LoopRow] = {}
         longest = max((s.window_s for s in schedules), default=3600.0)
         self.windows = WindowCache(store, int(window_cache_mb * 2**20), refresh_s=longest)
+        self.verdicts = VerdictWriter(store)
 
     @property
     def running(self) -> bool:
@@ -150,6 +158,7 @@ class DiagnosisScheduler:
     async def stop(self) -> None:
         if self._scheduler is not None and self._scheduler.running:
             self._scheduler.shutdown(wait=False)
+        await self.verdicts.close()
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
@@ -180,31 +189,16 @@ class DiagnosisScheduler:
             self._loops = await self.store.loops()
             row = self._loops[sched.name]
         now_us = _now_us()
-        window_us = int(sched.window_s * 1e6)
-        span = await self.store.sample_span_us(row, "pv")
-        notes: list[str] = []
-        if span is None or span[1] < now_us - window_us:
-            end_us = now_us
-            start_us = end_us - window_us
-            notes.append(
-                "no PV sample stored in the last window: check the source and its connection"
-                if span is not None
-                else "no PV sample stored yet"
-            )
-        else:
-            end_us = span[1] + 1
-            start_us = max(end_us - window_us, span[0])
-            if start_us > end_us - window_us:
-                notes.append(
-                    f"window shortened to the {(end_us - start_us) / 1e6:.0f} s of data stored "
-                    f"so far (configured {sched.window_s:g} s)"
-                )
         async with self._reads:  # windows read ahead while the workers diagnose
-            win = await self.windows.read_window(row, start_us, end_us, sched.hold)
+            latest = await self.windows.read_latest(
+                row, int(sched.window_s * 1e6), sched.hold, now_us
+            )
         self.metrics.window_cache_bytes.set(self.windows.nbytes)
+        win, start_us, end_us, notes = latest.window, latest.start_us, latest.end_us, latest.notes
         values = {k: v for k, v in win.values.items() if k in win.signals or k in ("pv", "op")}
         st = self.state[sched.name]
-        quantify = time.monotonic() - st.quantified_at >= self.quantify_every_s
+        # due half a period early at most: runs come a period apart, never exactly
+        quantify = time.monotonic() >= st.quantify_due - sched.period_s / 2
         if not quantify:
             notes.append(
                 f"S and J not re-estimated in this window (estimated at most every "
@@ -221,10 +215,25 @@ class DiagnosisScheduler:
                 notes,
                 quantify,
             )
-        if quantify and (payload.get("stiction") or {}).get("S") is not None:
-            st.quantified_at = time.monotonic()  # an unreliable estimate is tried again next time
+        if quantify:
+            self._schedule_quantification(st, payload, sched.period_s)
         await self._store(row, payload, start_us, end_us, now_us)
         return str(payload["cause"])
+
+    def _schedule_quantification(
+        self, st: LoopJobState, payload: dict[str, Any], period_s: float
+    ) -> None:
+        """Set when the loop's next S/J estimate is due after a diagnosis that could make one."""
+        stiction = payload.get("stiction") or {}
+        attempted = "quantification" in stiction or "op_pv_estimate" in stiction
+        if stiction.get("S") is not None:  # reliable (or measured from MV)
+            st.quantify_backoff_s = 0.0
+            st.quantify_due = time.monotonic() + self.quantify_every_s
+        elif attempted:
+            st.quantify_backoff_s = min(
+                self.quantify_every_s, max(period_s, 2 * st.quantify_backoff_s)
+            )
+            st.quantify_due = time.monotonic() + st.quantify_backoff_s
 
     async def _store(
         self, row: LoopRow, payload: dict[str, Any], start_us: int, end_us: int, now_us: int
@@ -256,6 +265,6 @@ class DiagnosisScheduler:
         else:
             st.last_cause, st.streak, st.streak_since_us = cause, 1, now_us
         adopt = st.streak >= self.confirm
-        if await record_verdict(self.store, verdict, adopt, st.streak_since_us):
+        if await self.verdicts.write(PendingVerdict(verdict, adopt, st.streak_since_us)):
             log.info("%s: %s (%s)", row.name, cause, verdict.state)
             self.metrics.set_loop_states(await count_loops_by_state(self.store))

@@ -7,10 +7,11 @@ since 1970-01-01 UTC, as everywhere in the store.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import and_, func, insert, select, update
+from sqlalchemy import bindparam, func, insert, select, update
 from sqlalchemy.ext.asyncio import AsyncConnection
 from sqlalchemy.sql.elements import ColumnElement
 
@@ -53,64 +54,143 @@ class LoopStatus:
     J: float | None
 
 
+@dataclass(frozen=True)
+class PendingVerdict:
+    """A verdict to store: with ``adopt`` (or when the loop has none yet) a new cause becomes
+    the loop's verdict from ``since_us`` (default: the verdict's ``created_us``)."""
+
+    verdict: Verdict
+    adopt: bool = True
+    since_us: int | None = None
+
+
 async def record_verdict(
     store: Store, v: Verdict, adopt: bool = True, since_us: int | None = None
 ) -> bool:
-    """Store a diagnosis; when ``adopt`` (or the loop has no verdict yet) and its cause differs
-    from the loop's, the loop takes it as its verdict from ``since_us`` (default: now).
-    Returns whether the loop's verdict changed."""
+    """Store one diagnosis (see ``record_verdicts``); returns whether the loop's verdict
+    changed."""
+    return (await record_verdicts(store, [PendingVerdict(v, adopt, since_us)]))[0]
+
+
+async def record_verdicts(store: Store, batch: Sequence[PendingVerdict]) -> list[bool]:
+    """Store diagnoses of distinct loops in one transaction, a few statements for the whole
+    batch: each diagnosis in the history, the loop's last diagnosis time, a new verdict (state,
+    cause, ``since``; the previous action closed, the new one opened) where the cause changed
+    and is adopted, the current action's text refreshed otherwise, and the S/J estimates.
+    Returns, per item, whether the loop's verdict changed."""
+    ids = [p.verdict.loop.id for p in batch]
+    assert len(set(ids)) == len(ids), "one verdict per loop in a batch"
+    if not batch:
+        return []
     async with store.engine.begin() as conn:
-        cur = (
-            await conn.execute(select(loops.c.cause).where(loops.c.id == v.loop.id))
-        ).scalar_one_or_none()
+        found = await conn.execute(select(loops.c.id, loops.c.cause).where(loops.c.id.in_(ids)))
+        cur = {r[0]: r[1] for r in found.all()}
+        changed = [
+            cur.get(p.verdict.loop.id) != p.verdict.cause
+            and (p.adopt or cur.get(p.verdict.loop.id) is None)
+            for p in batch
+        ]
         await conn.execute(
-            insert(diagnoses).values(
-                loop_id=v.loop.id,
-                created_us=v.created_us,
-                window_start_us=v.window_start_us,
-                window_end_us=v.window_end_us,
-                cause=v.cause,
-                state=v.state,
-                payload=v.payload,
-            )
+            insert(diagnoses),
+            [
+                {
+                    "loop_id": v.loop.id,
+                    "created_us": v.created_us,
+                    "window_start_us": v.window_start_us,
+                    "window_end_us": v.window_end_us,
+                    "cause": v.cause,
+                    "state": v.state,
+                    "payload": v.payload,
+                }
+                for v in (p.verdict for p in batch)
+            ],
         )
-        changed = cur != v.cause and (adopt or cur is None)
-        values: dict[str, Any] = {"last_diagnosis_us": v.created_us}
-        if changed:
-            values.update(state=v.state, cause=v.cause, since_us=since_us or v.created_us)
-        await conn.execute(update(loops).where(loops.c.id == v.loop.id).values(**values))
-        await _update_action(conn, v, changed)
-        if v.S is not None:
+        new = [p for p, c in zip(batch, changed, strict=True) if c]
+        same = [p.verdict for p, c in zip(batch, changed, strict=True) if not c]
+        if same:
             await conn.execute(
-                insert(stiction_estimates).values(
-                    loop_id=v.loop.id, at_us=v.window_end_us, S=v.S, J=v.J, source=v.stiction_source
+                update(loops)
+                .where(loops.c.id == bindparam("b_id"))
+                .values(last_diagnosis_us=bindparam("b_at")),
+                [{"b_id": v.loop.id, "b_at": v.created_us} for v in same],
+            )
+            # same verdict: keep the action and its ``since``, refresh its text (e.g. a new S)
+            await conn.execute(
+                update(actions)
+                .where(
+                    actions.c.loop_id == bindparam("b_id"),
+                    actions.c.active.is_(True),
+                    actions.c.cause == bindparam("b_cause"),
                 )
+                .values(text=bindparam("b_text")),
+                [{"b_id": v.loop.id, "b_cause": v.cause, "b_text": v.action_text} for v in same],
+            )
+        if new:
+            await _adopt(conn, new)
+        estimates = [p.verdict for p in batch if p.verdict.S is not None]
+        if estimates:
+            await conn.execute(
+                insert(stiction_estimates),
+                [
+                    {
+                        "loop_id": v.loop.id,
+                        "at_us": v.window_end_us,
+                        "S": v.S,
+                        "J": v.J,
+                        "source": v.stiction_source,
+                    }
+                    for v in estimates
+                ],
             )
     return changed
 
 
-async def _update_action(conn: AsyncConnection, v: Verdict, changed: bool) -> None:
-    active = and_(actions.c.loop_id == v.loop.id, actions.c.active.is_(True))
-    current = and_(active, actions.c.cause == v.cause)
-    if changed:
+async def _adopt(conn: AsyncConnection, batch: Sequence[PendingVerdict]) -> None:
+    """New verdicts: the loop's state, cause and ``since``; its active action closed and the
+    new one (if any) opened."""
+    await conn.execute(
+        update(loops)
+        .where(loops.c.id == bindparam("b_id"))
+        .values(
+            last_diagnosis_us=bindparam("b_at"),
+            state=bindparam("b_state"),
+            cause=bindparam("b_cause"),
+            since_us=bindparam("b_since"),
+        ),
+        [
+            {
+                "b_id": p.verdict.loop.id,
+                "b_at": p.verdict.created_us,
+                "b_state": p.verdict.state,
+                "b_cause": p.verdict.cause,
+                "b_since": p.since_us or p.verdict.created_us,
+            }
+            for p in batch
+        ],
+    )
+    await conn.execute(
+        update(actions)
+        .where(actions.c.loop_id == bindparam("b_id"), actions.c.active.is_(True))
+        .values(active=False, closed_us=bindparam("b_at")),
+        [{"b_id": p.verdict.loop.id, "b_at": p.verdict.created_us} for p in batch],
+    )
+    opened = [p.verdict for p in batch if p.verdict.action_code != "none"]
+    if opened:
         await conn.execute(
-            update(actions).where(active).values(active=False, closed_us=v.created_us)
+            insert(actions),
+            [
+                {
+                    "loop_id": v.loop.id,
+                    "cause": v.cause,
+                    "code": v.action_code,
+                    "text": v.action_text,
+                    "priority": v.priority,
+                    "since_us": v.created_us,
+                    "active": True,
+                }
+                for v in opened
+            ],
         )
-        if v.action_code != "none":
-            await conn.execute(
-                insert(actions).values(
-                    loop_id=v.loop.id,
-                    cause=v.cause,
-                    code=v.action_code,
-                    text=v.action_text,
-                    priority=v.priority,
-                    since_us=v.created_us,
-                    active=True,
-                )
-            )
-    else:
-        # same verdict: keep the action and its ``since``, refresh its text (e.g. a new S)
-        await conn.execute(update(actions).where(current).values(text=v.action_text))
 
 
 async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatus]:

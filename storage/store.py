@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -233,43 +234,50 @@ class Store:
     ) -> dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]]:
         """Per signal: (source timestamps µs, values with NaN for Bad) in [start, end).
 
-        The hot path of every scheduled diagnosis: one index range scan per tag through the
-        driver's own connection, rows straight into numpy (no ORM rows).
+        The hot path of every scheduled diagnosis: one statement for all the loop's tags (one
+        range scan each, in tag order) through the driver's own connection, rows straight into
+        numpy (no ORM rows). Timestamps (µs since 1970, < 2**53) are exact as float64.
         """
         out: dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
         if not loop.tags:
             return out
         ids = sorted(loop.tags.values())
-        async with self.engine.connect() as conn:
-            raw = await conn.get_raw_connection()
-            driver: Any = raw.driver_connection
-            # one statement for all the loop's tags (one range scan each, in tag order)
-            if self.dialect == "postgresql":
-                rows = await driver.fetch(
-                    "SELECT tag_id, ts_us, value FROM samples WHERE tag_id = ANY($1::int[]) "
-                    "AND ts_us >= $2 AND ts_us < $3 ORDER BY tag_id, ts_us",
-                    ids,
-                    start_us,
-                    end_us,
-                )
-                rows = [tuple(r) for r in rows]
-            else:
-                marks = ",".join("?" * len(ids))
-                rows = await driver.execute_fetchall(
-                    f"SELECT tag_id, ts_us, value FROM samples WHERE tag_id IN ({marks}) "
-                    "AND ts_us >= ? AND ts_us < ? ORDER BY tag_id, ts_us",
-                    (*ids, start_us, end_us),
-                )
+        if self.dialect == "postgresql":
+            sql = (
+                "SELECT tag_id, ts_us, COALESCE(value, 'NaN'::float8) FROM samples "
+                "WHERE tag_id = ANY($1::int[]) AND ts_us >= $2 AND ts_us < $3 "
+                "ORDER BY tag_id, ts_us"
+            )
+            rows = await self._fetch(sql, ids, start_us, end_us)
+        else:
+            marks = ",".join("?" * len(ids))
+            sql = (  # SQLite has no NaN: Bad (NULL) comes back as +inf (9e999)
+                f"SELECT tag_id, ts_us, ifnull(value, 9e999) FROM samples "
+                f"WHERE tag_id IN ({marks}) AND ts_us >= ? AND ts_us < ? ORDER BY tag_id, ts_us"
+            )
+            rows = await self._fetch(sql, *ids, start_us, end_us)
         if not rows:
             return out
-        a = np.array(rows, dtype=np.float64)  # None (Bad) becomes NaN
+        a = np.fromiter(chain.from_iterable(rows), np.float64, count=3 * len(rows))
+        a = a.reshape(-1, 3)
         tag = a[:, 0].astype(np.int64)
-        t = np.fromiter((r[1] for r in rows), dtype=np.int64, count=len(rows))  # exact µs
+        t = a[:, 1].astype(np.int64)
+        v = np.where(np.isfinite(a[:, 2]), a[:, 2], np.nan)
         for sig, tag_id in loop.tags.items():
             lo, hi = np.searchsorted(tag, [tag_id, tag_id + 1])
             if hi > lo:
-                out[sig] = (t[lo:hi], a[lo:hi, 2])
+                out[sig] = (t[lo:hi], v[lo:hi])
         return out
+
+    async def _fetch(self, sql: str, *params: Any) -> list[Sequence[Any]]:
+        """Rows of one raw statement on the driver's connection (``$n`` parameters on
+        PostgreSQL, ``?`` on SQLite): the scheduler's reads skip SQLAlchemy's row layer."""
+        async with self.engine.connect() as conn:
+            raw = await conn.get_raw_connection()
+            driver: Any = raw.driver_connection
+            if self.dialect == "postgresql":
+                return list(await driver.fetch(sql, *params))
+            return list(await driver.execute_fetchall(sql, params))
 
     async def last_before(
         self, loop: LoopRow, at_us: int, signals: Sequence[str]
@@ -306,13 +314,18 @@ class Store:
             ids = [loop.tags[signal]] if signal in loop.tags else []
         if not ids:
             return None
-        q = (
-            select(text("min(ts_us)"), text("max(ts_us)"))
-            .select_from(samples)
-            .where(samples.c.tag_id.in_(ids))
+        # min and max in separate subqueries: SQLite answers a lone min() or max() from the
+        # (tag_id, ts_us) key in O(log n), but scans every row for both in one SELECT
+        params: list[Any]
+        if self.dialect == "postgresql":
+            cond, params = "tag_id = ANY($1::int[])", [ids]
+        else:
+            cond, params = f"tag_id IN ({','.join('?' * len(ids))})", ids + ids
+        sql = (
+            f"SELECT (SELECT min(ts_us) FROM samples WHERE {cond}), "
+            f"(SELECT max(ts_us) FROM samples WHERE {cond})"
         )
-        async with self.engine.connect() as conn:
-            lo, hi = (await conn.execute(q)).one()
+        lo, hi = (await self._fetch(sql, *params))[0]
         return None if hi is None else (int(lo), int(hi))
 
     # -- housekeeping --------------------------------------------------------------------

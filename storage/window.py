@@ -34,11 +34,13 @@ class LoopWindow:
 
 
 def median_spacing_s(ts_us: NDArray[np.int64]) -> float | None:
-    """Median spacing (s) of sorted unique timestamps; None with fewer than 2."""
-    u = np.unique(ts_us)
-    if u.size < 2:
+    """Median spacing (s) of the distinct timestamps; None with fewer than 2."""
+    d = np.diff(ts_us)
+    if not (d > 0).all():  # unsorted or repeated (a store returns one tag's sorted, unique)
+        d = np.diff(np.unique(ts_us))
+    if d.size < 1:
         return None
-    return float(np.median(np.diff(u))) / 1e6
+    return float(np.median(d)) / 1e6
 
 
 def align(

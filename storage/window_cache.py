@@ -8,6 +8,10 @@ little late (the writer commits about once a second; a source may deliver in bat
 the cached tail; a full re-read every ``refresh_s`` picks up anything older written since (a
 buffer replayed after a database outage). The cache is bounded (``max_bytes``, least recently
 used loops dropped first): a loop that does not fit is read whole, as without a cache.
+
+``read_latest`` gives the window that ends at the loop's newest stored PV sample (source time):
+the tail read is open-ended, so the newest sample comes with it and the oldest is remembered
+from the last full read; only a full read asks the store for the PV span.
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ class CachedWindow:
     full_read_us: int
     """``end_us`` of the last full read (monotonic in source time)."""
     hold: tuple[str, ...] = field(default=())
+    oldest_pv_us: int | None = None
+    """Oldest stored PV sample at the last full read (None: not known)."""
 
     @property
     def nbytes(self) -> int:
@@ -75,6 +81,48 @@ def trim_head(
     return out, before
 
 
+@dataclass(frozen=True)
+class LatestWindow:
+    """The window ``read_latest`` chose and read, with notes on how it was chosen."""
+
+    window: LoopWindow
+    start_us: int
+    end_us: int
+    notes: list[str]
+
+
+def window_bounds(
+    pv_span: tuple[int, int] | None, now_us: int, window_us: int
+) -> tuple[int, int, list[str]]:
+    """(start µs, end µs, notes) of a loop's window of ``window_us`` given its oldest and
+    newest stored PV sample: ending just after the newest (the plant's own time base), shortened
+    to the data stored so far; ending now when the newest is older than a window (the chain
+    then reports the missing data)."""
+    if pv_span is None or pv_span[1] < now_us - window_us:
+        return (
+            now_us - window_us,
+            now_us,
+            [
+                "no PV sample stored in the last window: check the source and its connection"
+                if pv_span is not None
+                else "no PV sample stored yet"
+            ],
+        )
+    end_us = pv_span[1] + 1
+    start_us = max(end_us - window_us, pv_span[0])
+    notes = []
+    if start_us > end_us - window_us:
+        notes.append(
+            f"window shortened to the {(end_us - start_us) / 1e6:.0f} s of data stored so far "
+            f"(configured {window_us / 1e6:g} s)"
+        )
+    return start_us, end_us, notes
+
+
+OPEN_END_US = 1 << 62
+"""An end later than any timestamp (µs): an open-ended read."""
+
+
 class WindowCache:
     """Per-loop rolling windows over a ``Store`` (one instance per scheduler)."""
 
@@ -82,7 +130,7 @@ class WindowCache:
         self,
         store: Store,
         max_bytes: int = 256 << 20,
-        lookback_s: float = 120.0,
+        lookback_s: float = 30.0,
         refresh_s: float = 3600.0,
     ) -> None:
         self.store = store
@@ -98,35 +146,105 @@ class WindowCache:
     def __len__(self) -> int:
         return len(self._loops)
 
+    async def read_latest(
+        self, loop: LoopRow, window_us: int, hold: tuple[str, ...], now_us: int
+    ) -> LatestWindow:
+        """The loop's window of ``window_us`` ending at its newest stored PV sample (see
+        ``window_bounds``), read from the cache and the samples stored since."""
+        c = self._take(loop, hold)
+        if c is not None and c.oldest_pv_us is not None:
+            from_us = max(c.start_us, c.end_us - self.lookback_us)
+            fresh = await self.store.read_series(loop, from_us, OPEN_END_US)
+            pv_t = fresh.get("pv", c.series.get("pv", (np.empty(0, np.int64), None)))[0]
+            if pv_t.size:
+                start_us, end_us, notes = window_bounds(
+                    (c.oldest_pv_us, int(pv_t[-1])), now_us, window_us
+                )
+                if self._usable(c, start_us, end_us):
+                    fresh = {sig: _before(t, v, end_us) for sig, (t, v) in fresh.items()}
+                    return LatestWindow(
+                        self._extend(loop, c, fresh, from_us, start_us, end_us),
+                        start_us,
+                        end_us,
+                        notes,
+                    )
+        span = await self.store.sample_span_us(loop, "pv")
+        start_us, end_us, notes = window_bounds(span, now_us, window_us)
+        oldest = None if span is None else span[0]
+        win = await self._read_whole(loop, start_us, end_us, hold, oldest)
+        return LatestWindow(win, start_us, end_us, notes)
+
     async def read_window(
         self, loop: LoopRow, start_us: int, end_us: int, hold: tuple[str, ...]
     ) -> LoopWindow:
         """The loop's window over [start, end), as ``Store.read_window`` returns it."""
+        c = self._take(loop, hold)
+        if c is not None and self._usable(c, start_us, end_us):
+            from_us = max(c.start_us, c.end_us - self.lookback_us)
+            fresh = await self.store.read_series(loop, from_us, end_us)
+            return self._extend(loop, c, fresh, from_us, start_us, end_us)
+        return await self._read_whole(loop, start_us, end_us, hold, None)
+
+    def _take(self, loop: LoopRow, hold: tuple[str, ...]) -> CachedWindow | None:
+        """The loop's cached window (removed from the cache until put back), if it was read
+        with the same held signals."""
         c = self._loops.pop(loop.name, None)
         if c is not None:
             self.nbytes -= c.nbytes
-        usable = (
-            c is not None
-            and c.hold == hold
-            and c.start_us <= start_us
+        return c if c is not None and c.hold == hold else None
+
+    def _usable(self, c: CachedWindow, start_us: int, end_us: int) -> bool:
+        """Whether ``c`` plus a tail read gives the window [start, end): it moved forward
+        and a full re-read is not due."""
+        return (
+            c.start_us <= start_us
             and start_us <= c.end_us <= end_us
             and end_us - c.full_read_us < self.refresh_us
         )
-        if c is not None and usable:
-            from_us = max(c.start_us, c.end_us - self.lookback_us)
-            fresh = await self.store.read_series(loop, from_us, end_us)
-            series, before = trim_head(
-                merge_tail(c.series, fresh, from_us), c.before, start_us, hold
-            )
-            c = CachedWindow(start_us, end_us, series, before, c.full_read_us, hold)
-            self.tail_reads += 1
-        else:
-            series = await self.store.read_series(loop, start_us, end_us)
-            before = await self.store.last_before(loop, start_us, hold)
-            c = CachedWindow(start_us, end_us, series, before, end_us, hold)
-            self.full_reads += 1
+
+    def _extend(
+        self,
+        loop: LoopRow,
+        c: CachedWindow,
+        fresh: Series,
+        from_us: int,
+        start_us: int,
+        end_us: int,
+    ) -> LoopWindow:
+        """``c`` with its tail from ``from_us`` replaced by ``fresh``, cut to [start, end)."""
+        series, before = trim_head(merge_tail(c.series, fresh, from_us), c.before, start_us, c.hold)
+        self.tail_reads += 1
+        return self._keep(
+            loop,
+            CachedWindow(start_us, end_us, series, before, c.full_read_us, c.hold, c.oldest_pv_us),
+        )
+
+    async def _read_whole(
+        self,
+        loop: LoopRow,
+        start_us: int,
+        end_us: int,
+        hold: tuple[str, ...],
+        oldest_pv_us: int | None,
+    ) -> LoopWindow:
+        series = await self.store.read_series(loop, start_us, end_us)
+        before = await self.store.last_before(loop, start_us, hold)
+        self.full_reads += 1
+        return self._keep(
+            loop, CachedWindow(start_us, end_us, series, before, end_us, hold, oldest_pv_us)
+        )
+
+    def _keep(self, loop: LoopRow, c: CachedWindow) -> LoopWindow:
+        """Cache ``c`` (dropping the least recently used loops beyond the bound) and align it."""
         self._loops[loop.name] = c
         self.nbytes += c.nbytes
         while self._loops and self.nbytes > self.max_bytes:
             self.nbytes -= self._loops.popitem(last=False)[1].nbytes
-        return align(c.series, start_us, end_us, None, c.before, hold)
+        return align(c.series, c.start_us, c.end_us, None, c.before, c.hold)
+
+
+def _before(
+    t: NDArray[np.int64], v: NDArray[np.float64], end_us: int
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    k = int(np.searchsorted(t, end_us, side="left"))
+    return t[:k], v[:k]

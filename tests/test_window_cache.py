@@ -85,3 +85,41 @@ def test_cached_windows_equal_whole_reads(db_url: str) -> None:
             await store.close()
 
     asyncio.run(body())
+
+
+def test_latest_window_ends_at_newest_pv(db_url: str) -> None:
+    """``read_latest`` (the scheduler's read) ends each window just after the newest stored PV
+    sample, takes it from the tail it reads, and matches a whole read of the same bounds."""
+
+    async def body() -> None:
+        store = await Store.open(db_url)
+        try:
+            lp = (await store.sync_config(one_loop_config()))["FIC1"]
+            cache = WindowCache(store, lookback_s=60, refresh_s=3600)
+            window = 600 * S
+            first = await cache.read_latest(lp, window, HOLD, T0)
+            assert first.notes == ["no PV sample stored yet"] and cache.full_reads == 1
+            await store.write_samples(_samples(lp, range(0, 300)))
+            short = await cache.read_latest(lp, window, HOLD, T0 + 400 * S)
+            assert (short.start_us, short.end_us) == (T0, T0 + 299 * S + 1)
+            assert "window shortened to the 299 s" in short.notes[0]
+            for end_k in (900, 1200, 1500):
+                await store.write_samples(_samples(lp, range(end_k - 600, end_k)))
+                # an OP sample newer than every PV sample stays out until PV reaches it
+                t = T0 + (end_k + 5) * S
+                await store.write_samples([Sample(lp.tags["op"], t, t, 1.0, GOOD)])
+                now = T0 + (end_k + 100) * S  # the server's clock, ahead of the plant's
+                got = await cache.read_latest(lp, window, HOLD, now)
+                assert got.end_us == T0 + (end_k - 1) * S + 1 and not got.notes
+                assert got.start_us == got.end_us - window
+                _same(got.window, await store.read_window(lp, got.start_us, got.end_us, hold=HOLD))
+            assert cache.full_reads == 2 and cache.tail_reads == 3
+            stale = await cache.read_latest(lp, window, HOLD, T0 + 5_000 * S)
+            assert (
+                stale.end_us == T0 + 5_000 * S
+                and "no PV sample stored in the last" in (stale.notes[0])
+            )
+        finally:
+            await store.close()
+
+    asyncio.run(body())
