@@ -94,7 +94,9 @@ def run_stiction_tests(
         # OP carries the proportional kick of the PV noise: smooth over a tenth of the period
         ss = moving_average(detrend(sig), max(1, round(period / ts / 10.0)))
         amp = 0.3 * float(np.mean(np.abs(ss))) * np.sqrt(2.0)
-        hc_s = significant_half_cycles(ss, ts, 0.1 * float(np.std(ss)), amp)
+        hc_s = significant_half_cycles(
+            ss, ts, 0.1 * float(np.std(ss)), amp, params.shape.curvefit_min_half_samples
+        )
         out["curve_fit"] = curve_fit_index(hc_s, params.shape)
     if "cross_correlation" in names:
         out["cross_correlation"] = horch_ccf(op, pv, ts, period, params.horch)

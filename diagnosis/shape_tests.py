@@ -49,6 +49,12 @@ class ShapeParams:
     """Fewest usable half-cycles for any shape verdict [R]."""
     min_half_samples: int = 5
     """Half-cycles shorter than this are skipped (methods §4.1)."""
+    curvefit_min_half_samples: int = 10
+    """Half-cycles shorter than this are skipped by the curve fit (He et al. 2007). Sampled at
+    fewer points a half sine and its best triangle differ by less than the sampling itself: a
+    fast linear oscillation (an aggressive loop at ~10 samples per period) read as triangular in
+    most windows. [R: generated cases seeds 1-5 and ISDB: no verdict lost, 2 fewer false
+    stiction]"""
 
 
 @cache
