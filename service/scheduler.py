@@ -6,9 +6,10 @@ Each loop gets an interval job (its ``period_s``, default 10 min) that reads the
 stores the diagnosis, its suggested action and any stiction estimate. The Hammerstein S/J
 estimate (methods §6.1, the costly step: about 0.5-1 s a window) is made at most every
 ``quantify_every_s`` (default 1 h) per loop once it was reliable: enough for a trend over
-weeks. An estimate that fails the reliability rules is tried again after one period, then after
-twice as long each time, up to ``quantify_every_s``: a valve whose estimate stays unreliable
-costs one attempt an hour, not one every run. A loop's verdict (state, cause, ``since``)
+weeks, and only when the previous diagnosis found the valve sticky too (one odd window costs no
+estimate). An estimate that fails the reliability rules is tried again after one period, then
+after twice as long each time, up to ``quantify_every_s``: a valve whose estimate stays
+unreliable costs one attempt an hour, not one every run. A loop's verdict (state, cause, ``since``)
 changes only when ``confirm`` consecutive diagnoses (default 2) find the same new cause, so one
 odd window does not flip the health table; every diagnosis is kept in the history whatever its
 cause. Verdicts are committed in batches (``storage.verdict_writer``: the verdicts of a quarter
@@ -198,12 +199,9 @@ class DiagnosisScheduler:
         values = {k: v for k, v in win.values.items() if k in win.signals or k in ("pv", "op")}
         st = self.state[sched.name]
         # due half a period early at most: runs come a period apart, never exactly
-        quantify = time.monotonic() >= st.quantify_due - sched.period_s / 2
-        if not quantify:
-            notes.append(
-                f"S and J not re-estimated in this window (estimated at most every "
-                f"{self.quantify_every_s:g} s; the latest estimate stays in the loop table)"
-            )
+        due = time.monotonic() >= st.quantify_due - sched.period_s / 2
+        # only once a second window finds the valve sticky: one odd window costs no estimate
+        quantify = due and st.last_cause in QUANTIFIED_CAUSES
         assert self._pool is not None, "scheduler not started"
         async with self._slots:
             payload = await asyncio.get_running_loop().run_in_executor(
@@ -217,6 +215,16 @@ class DiagnosisScheduler:
             )
         if quantify:
             self._schedule_quantification(st, payload, sched.period_s)
+        elif payload["cause"] in QUANTIFIED_CAUSES and payload.get("chain") != "advanced":
+            payload["notes"].append(
+                "S and J not estimated in this window: "
+                + (
+                    "first window with this cause, estimated when the next one confirms it"
+                    if due
+                    else f"estimated at most every {self.quantify_every_s:g} s (the latest "
+                    "estimate stays in the loop table)"
+                )
+            )
         await self._store(row, payload, start_us, end_us, now_us)
         return str(payload["cause"])
 

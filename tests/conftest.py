@@ -64,7 +64,8 @@ def service() -> Iterator[Service]:
         start, truth = fill_store(folder, config)
         svc = start_service(config, port, truth, start)
         try:
-            wait_diagnosed(svc.url, len(truth))
+            sticky = frozenset(k for k, t in truth.items() if t["S"] is not None)
+            wait_diagnosed(svc.url, len(truth), sticky=sticky)
             yield svc
         finally:
             svc.stop()

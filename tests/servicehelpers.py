@@ -136,14 +136,23 @@ def start_service(
 
 
 def wait_diagnosed(
-    url: str, n: int, timeout_s: float = 120.0, headers: dict[str, str] | None = None
+    url: str,
+    n: int,
+    timeout_s: float = 120.0,
+    headers: dict[str, str] | None = None,
+    sticky: frozenset[str] = frozenset(),
 ) -> list[dict[str, object]]:
-    """Poll GET /api/v1/loops until ``n`` loops have a cause."""
+    """Poll GET /api/v1/loops until ``n`` loops have a cause and the ``sticky`` ones an S
+    (estimated once a second window confirms stiction)."""
     deadline = time.monotonic() + timeout_s
     loops: list[dict[str, object]] = []
     while time.monotonic() < deadline:
         loops = httpx.get(f"{url}/api/v1/loops", headers=headers, timeout=10).json()
-        if sum(lp["cause"] is not None for lp in loops) >= n:
+        with_s = {lp["id"] for lp in loops if lp["S"] is not None}
+        if sum(lp["cause"] is not None for lp in loops) >= n and sticky <= with_s:
             return loops
         time.sleep(1)
-    raise AssertionError(f"only {sum(lp['cause'] is not None for lp in loops)} of {n} diagnosed")
+    raise AssertionError(
+        f"only {sum(lp['cause'] is not None for lp in loops)} of {n} diagnosed, "
+        f"S of {sorted(sticky - {lp['id'] for lp in loops if lp['S'] is not None})} missing"
+    )
