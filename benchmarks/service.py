@@ -37,17 +37,16 @@ import numpy as np
 import uvicorn
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from helpers import free_port
+from helpers import free_port, verdict_of
 from simhelpers import scaled_scenario
 
-from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.config import Config
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.runtime import schedules_of
 from plantcheck.service.scheduler import DiagnosisScheduler
 from plantcheck.simulator.plant import Plant
 from plantcheck.storage.database import upgrade
-from plantcheck.storage.results import Verdict, record_verdict
+from plantcheck.storage.results import record_verdict
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import Store
 
@@ -177,23 +176,9 @@ async def fake_verdicts(cfg: Config) -> None:
     mix = ["ok", "stiction", "aggressive_tuning", "sluggish_tuning", "external_disturbance"]
     for k, row in enumerate(rows.values()):
         cause = mix[k % len(mix)]
-        a = action_for(cause, 3.0 if cause == "stiction" else None)
+        sticky = cause == "stiction"
         await record_verdict(
-            store,
-            Verdict(
-                row,
-                now,
-                now - 3_600_000_000,
-                now,
-                cause,
-                state_of(cause),
-                {"cause": cause},
-                a["code"],
-                a["text"],
-                priority_of(cause),
-                3.0 if cause == "stiction" else None,
-                1.0 if cause == "stiction" else None,
-            ),
+            store, verdict_of(row, now, cause, 3.0 if sticky else None, 1.0 if sticky else None)
         )
     await store.close()
 

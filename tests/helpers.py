@@ -6,7 +6,10 @@ import socket
 import subprocess
 from collections.abc import Callable
 
+from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.config import Config, LoopConfig, SourceConfig
+from plantcheck.storage.results import Verdict
+from plantcheck.storage.store import LoopRow
 
 RunCli = Callable[..., subprocess.CompletedProcess[str]]
 
@@ -23,6 +26,28 @@ def one_loop_config() -> Config:
                        pv="hr:12:float32", op="hr:14:float32")
         ],
     )  # fmt: skip
+
+
+def verdict_of(
+    row: LoopRow, at_us: int, cause: str, S: float | None = None, J: float | None = None
+) -> Verdict:
+    """A stored verdict of ``cause`` for a 1-h window ending at ``at_us``, with its action
+    (without diagnosing: the store and API tests' verdicts)."""
+    a = action_for(cause, S, J)
+    return Verdict(
+        row,
+        at_us,
+        at_us - 3_600_000_000,
+        at_us,
+        cause,
+        state_of(cause),
+        {"cause": cause},
+        a["code"],
+        a["text"],
+        priority_of(cause),
+        S,
+        J,
+    )
 
 
 def free_port() -> int:

@@ -8,9 +8,8 @@ import time
 from typing import Any
 
 import pytest
-from helpers import T0
+from helpers import T0, verdict_of
 
-from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.config import Config
 from plantcheck.service.scheduler import DiagnosisScheduler, LoopJobState
 from plantcheck.storage.results import (
@@ -38,21 +37,7 @@ def _config(n: int) -> Config:
 
 
 def _verdict(row: LoopRow, at: int, cause: str, S: float | None = None) -> Verdict:
-    a = action_for(cause, S)
-    return Verdict(
-        row,
-        at,
-        at - 3_600_000_000,
-        at,
-        cause,
-        state_of(cause),
-        {"cause": cause},
-        a["code"],
-        a["text"],
-        priority_of(cause),
-        S,
-        None if S is None else 0.5,
-    )
+    return verdict_of(row, at, cause, S, None if S is None else 0.5)
 
 
 def test_batched_verdicts(db_url: str) -> None:
