@@ -174,17 +174,6 @@ class WindowCache:
         win = await self._read_whole(loop, start_us, end_us, hold, oldest)
         return LatestWindow(win, start_us, end_us, notes)
 
-    async def read_window(
-        self, loop: LoopRow, start_us: int, end_us: int, hold: tuple[str, ...]
-    ) -> LoopWindow:
-        """The loop's window over [start, end), as ``Store.read_window`` returns it."""
-        c = self._take(loop, hold)
-        if c is not None and self._usable(c, start_us, end_us):
-            from_us = max(c.start_us, c.end_us - self.lookback_us)
-            fresh = await self.store.read_series(loop, from_us, end_us)
-            return self._extend(loop, c, fresh, from_us, start_us, end_us)
-        return await self._read_whole(loop, start_us, end_us, hold, None)
-
     def _take(self, loop: LoopRow, hold: tuple[str, ...]) -> CachedWindow | None:
         """The loop's cached window (removed from the cache until put back), if it was read
         with the same held signals."""

@@ -45,6 +45,14 @@ def test_merge_and_trim() -> None:
     assert tr["pv"][0][0] == 5 and before == {"sp": 1.0}
 
 
+async def _read_as_whole(
+    cache: WindowCache, store: Store, lp: LoopRow, window: int, now: int
+) -> None:
+    """The scheduler's read through ``cache`` equals a whole read of the same bounds."""
+    got = await cache.read_latest(lp, window, HOLD, now)
+    _same(got.window, await store.read_window(lp, got.start_us, got.end_us, hold=HOLD))
+
+
 def test_cached_windows_equal_whole_reads(db_url: str) -> None:
     async def body() -> None:
         store = await Store.open(db_url)
@@ -59,9 +67,7 @@ def test_cached_windows_equal_whole_reads(db_url: str) -> None:
                 if end_k == 1800:  # a late sample inside the look-back replaces the cached one
                     t = T0 + 1790 * S
                     await store.write_samples([Sample(lp.tags["pv"], t, t, 99.0, GOOD)])
-                end = T0 + end_k * S
-                got = await cache.read_window(lp, end - window, end, HOLD)
-                _same(got, await store.read_window(lp, end - window, end, hold=HOLD))
+                await _read_as_whole(cache, store, lp, window, T0 + end_k * S)
             assert cache.full_reads == 1 and cache.tail_reads == 3
             assert 0 < cache.nbytes < 600 * 3 * 16 + 1024
             # a sample written late, before the look-back: seen after the next full read
@@ -69,17 +75,13 @@ def test_cached_windows_equal_whole_reads(db_url: str) -> None:
             await store.write_samples([Sample(lp.tags["op"], t, t, None, GOOD)])
             end = T0 + 2400 * S
             refreshing = WindowCache(store, lookback_s=60, refresh_s=0)
-            await refreshing.read_window(lp, end - window, end, HOLD)
-            got = await refreshing.read_window(lp, end - window, end, HOLD)
-            _same(got, await store.read_window(lp, end - window, end, hold=HOLD))
+            await refreshing.read_latest(lp, window, HOLD, end)
+            await _read_as_whole(refreshing, store, lp, window, end)
             assert refreshing.full_reads == 2
             # no room: every read is whole, nothing kept
             tiny = WindowCache(store, max_bytes=0)
             for _ in range(2):
-                _same(
-                    await tiny.read_window(lp, end - window, end, HOLD),
-                    await store.read_window(lp, end - window, end, hold=HOLD),
-                )
+                await _read_as_whole(tiny, store, lp, window, end)
             assert tiny.full_reads == 2 and len(tiny) == 0 and tiny.nbytes == 0
         finally:
             await store.close()
