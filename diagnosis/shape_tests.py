@@ -21,6 +21,7 @@ import numpy as np
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     HalfCycles,
+    first_peaks,
     fit_error_to_templates,
     half_cycles,
 )
@@ -142,13 +143,13 @@ def area_ratio(
         return StictionTestResult("area_ratio", None, "undecided", f"{hc.count} half-cycles")
     ax = np.abs(x - x.mean())
     csum = np.concatenate(([0.0], np.cumsum(ax)))
-    ratios = np.empty(hc.count)
-    for i, (a, b) in enumerate(zip(hc.starts, hc.stops, strict=True)):
-        k = a + int(np.argmax(ax[a:b]))
-        # the peak sample is shared half and half, or short half-cycles are biased above 1
-        a1 = csum[k] - csum[a] + 0.5 * ax[k]
-        a2 = csum[b] - csum[k + 1] + 0.5 * ax[k]
-        ratios[i] = a1 / a2 if a2 > 0 else 10.0
+    a, b = hc.starts, hc.stops
+    k = first_peaks(ax, a, b)
+    # the peak sample is shared half and half, or short half-cycles are biased above 1
+    a1 = csum[k] - csum[a] + 0.5 * ax[k]
+    a2 = csum[b] - csum[k + 1] + 0.5 * ax[k]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios = np.where(a2 > 0, a1 / a2, 10.0)
     # geometric mean: growing and decaying cycles (random excitation) cancel out
     r = float(np.exp(np.mean(np.log(np.clip(ratios, 0.1, 10.0)))))
     return StictionTestResult(

@@ -211,16 +211,27 @@ def half_cycles(
     rms = np.sqrt(np.mean(vals**2, axis=1))
     rms[rms == 0] = 1.0
     shapes = vals / rms[:, None]
-    # peak over the raw samples of each half-cycle
-    peak = np.maximum.reduceat(np.abs(x), starts)[:n_half] if n_half else np.empty(0)
-    # reduceat runs to the next start, which equals the stop for contiguous half-cycles;
-    # recompute exactly where they are not contiguous
-    noncontig = np.flatnonzero(stops[:-1] != starts[1:])
-    for i in noncontig:
-        peak[i] = np.abs(x[starts[i] : stops[i]]).max()
-    if n_half:
-        peak[-1] = np.abs(x[starts[-1] : stops[-1]]).max()
+    # peak over the raw samples of each half-cycle: reduceat over interleaved (start, stop)
+    # pairs gives max |x[start:stop]| at the even positions (stop < x.size always holds)
+    bounds = np.column_stack((starts, stops)).ravel()
+    peak = np.maximum.reduceat(np.abs(x), bounds)[::2]
     return HalfCycles(shapes, starts, stops, iae, peak)
+
+
+def first_peaks(x: FloatArray, starts: IntArray, stops: IntArray) -> IntArray:
+    """Index of the first maximum of ``x[start:stop]`` for every (non-empty) segment, at once.
+
+    ``x`` finite; segments must lie inside it with ``stop < x.size`` (as half-cycles between zero
+    crossings do); they may leave gaps but not overlap.
+    """
+    if starts.size == 0:
+        return np.empty(0, dtype=np.intp)
+    peak = np.maximum.reduceat(x, np.column_stack((starts, stops)).ravel())[::2]
+    lengths = stops - starts
+    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    idx = np.arange(int(lengths.sum())) + np.repeat(starts - offsets, lengths)
+    hits = np.flatnonzero(x[idx] == np.repeat(peak, lengths))
+    return np.asarray(idx[hits[np.searchsorted(hits, offsets)]], dtype=np.intp)
 
 
 def fit_error_to_templates(shapes: FloatArray, templates: FloatArray) -> FloatArray:

@@ -7,6 +7,7 @@ import numpy as np
 from plantcheck.diagnosis.signal_tools import (
     fft_acf,
     fft_ccf,
+    first_peaks,
     half_cycles,
     noise_sigma,
     zero_crossings,
@@ -48,6 +49,24 @@ def test_half_cycles_shapes_are_rms_normalised() -> None:
     assert np.allclose(np.sqrt(np.mean(hc.shapes**2, axis=1)), 1.0)
     assert np.all(hc.shapes[:, 16] > 0)  # flipped positive
     assert np.allclose(hc.peak, 3.0, atol=0.01)
+
+
+def test_half_cycle_peaks_when_short_half_cycles_are_dropped() -> None:
+    """Dropping short half-cycles leaves gaps between kept ones: each peak is still the
+    largest |x| between its own start and stop."""
+    rng = np.random.default_rng(3)
+    x = np.sin(np.arange(2000) / 15.0) + 0.6 * rng.normal(size=2000)
+    hc = half_cycles(x, 1.0, band=0.0, min_samples=4)
+    assert hc.count > 10 and np.any(hc.stops[:-1] != hc.starts[1:])
+    expected = [np.abs(x[a:b]).max() for a, b in zip(hc.starts, hc.stops, strict=True)]
+    assert np.array_equal(hc.peak, expected)
+
+
+def test_first_peaks_takes_the_first_of_tied_maxima() -> None:
+    x = np.array([0.0, 2.0, 1.0, 2.0, 0.0, 5.0, 5.0, 1.0, 3.0, 0.0, 0.0])
+    starts, stops = np.array([0, 4, 8]), np.array([4, 7, 10])
+    assert first_peaks(x, starts, stops).tolist() == [1, 5, 8]
+    assert first_peaks(x, starts[:0], stops[:0]).size == 0
 
 
 def test_noise_sigma_ignores_slow_oscillation() -> None:
