@@ -117,6 +117,8 @@ class DiagnosisScheduler:
         longest = max((s.window_s for s in schedules), default=3600.0)
         self.windows = WindowCache(store, int(window_cache_mb * 2**20), refresh_s=longest)
         self.verdicts = VerdictWriter(store)
+        self._states_stale = False
+        self._states_task: asyncio.Task[None] | None = None
 
     @property
     def running(self) -> bool:
@@ -160,6 +162,8 @@ class DiagnosisScheduler:
         if self._scheduler is not None and self._scheduler.running:
             self._scheduler.shutdown(wait=False)
         await self.verdicts.close()
+        if self._states_task is not None:
+            await self._states_task
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
@@ -275,4 +279,20 @@ class DiagnosisScheduler:
         adopt = st.streak >= self.confirm
         if await self.verdicts.write(PendingVerdict(verdict, adopt, st.streak_since_us)):
             log.info("%s: %s (%s)", row.name, cause, verdict.state)
-            self.metrics.set_loop_states(await count_loops_by_state(self.store))
+            self._count_states_soon()
+
+    def _count_states_soon(self) -> None:
+        """Recount the loops per state (``plantcheck_loops``) once for all the verdicts that
+        changed together (a batch commits many; one count each cost ~1 ms of event loop)."""
+        self._states_stale = True
+        if self._states_task is None or self._states_task.done():
+            self._states_task = asyncio.create_task(self._count_states(), name="count-states")
+
+    async def _count_states(self) -> None:
+        while self._states_stale:
+            self._states_stale = False
+            try:
+                self.metrics.set_loop_states(await count_loops_by_state(self.store))
+            except Exception as exc:  # the gauge keeps its last counts; the next change retries
+                log.warning("counting loops per state failed: %s", exc)
+                return
