@@ -125,3 +125,41 @@ def test_upgrade_clusters_an_existing_sqlite_samples_table(tmp_path: Path) -> No
     got = con.execute("SELECT * FROM samples ORDER BY ts_us").fetchall()
     con.close()
     assert got == rows
+
+
+def test_window_reads_recover_after_the_connection_is_lost(db_url: str) -> None:
+    """The window reads share one kept connection: when PostgreSQL drops it the read is
+    retried on a fresh one; a failed statement does not break the reads after it."""
+
+    async def body() -> None:
+        store = await Store.open(db_url)
+        try:
+            lp = (await store.sync_config(one_loop_config()))["FIC1"]
+            await store.write_samples(
+                [Sample(lp.tags["pv"], T0 + k, T0 + k, float(k), GOOD) for k in range(100)]
+            )
+            before = await store.read_series(lp, T0, T0 + 100)
+            if store.dialect == "postgresql":
+                import asyncpg
+
+                url = db_url.replace("postgresql+asyncpg", "postgresql")
+                admin = await asyncpg.connect(url)
+                try:
+                    await admin.execute(
+                        "SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
+                        "WHERE datname = current_database() AND pid <> pg_backend_pid()"
+                    )
+                finally:
+                    await admin.close()
+                again = await store.read_series(lp, T0, T0 + 100)
+                assert np.array_equal(again["pv"][1], before["pv"][1])
+            else:
+                with pytest.raises(Exception):  # noqa: B017 - sqlite3's error
+                    await store._fetch("SELECT no_such_column FROM samples")
+            after = await store.read_series(lp, T0, T0 + 100)
+            assert np.array_equal(after["pv"][1], before["pv"][1])
+            assert after["pv"][1].tolist() == [float(k) for k in range(100)]
+        finally:
+            await store.close()
+
+    asyncio.run(body())
