@@ -5,9 +5,13 @@ needs. Per loop the cache holds each signal's (source timestamps µs, values) fr
 start on, plus the last value before it for the held signals (SP, mode: reported on change).
 Each read fetches from ``lookback_s`` before the cached end, so samples that reach the store a
 little late (the writer commits about once a second; a source may deliver in batches) replace
-the cached tail; a full re-read every ``refresh_s`` picks up anything older written since (a
-buffer replayed after a database outage). The cache is bounded (``max_bytes``, least recently
-used loops dropped first): a loop that does not fit is read whole, as without a cache.
+the cached tail. Every ``refresh_s`` the cached part before the look-back is checked against
+the store: the samples per signal are counted (no values read), and when a count differs
+(samples written later than the look-back: a buffer replayed after a database outage, an
+import) the window is read whole again. Stored samples are never changed in place (writes are
+idempotent inserts), so equal counts mean equal samples. The cache is bounded (``max_bytes``,
+least recently used loops dropped first): a loop that does not fit is read whole, as without
+a cache.
 
 ``read_latest`` gives the window that ends at the loop's newest stored PV sample (source time):
 the tail read is open-ended, so the newest sample comes with it and the oldest is remembered
@@ -38,7 +42,8 @@ class CachedWindow:
     series: Series
     before: dict[str, float]
     full_read_us: int
-    """``end_us`` of the last full read (monotonic in source time)."""
+    """``end_us`` of the last full read or check against the store (monotonic in source
+    time)."""
     hold: tuple[str, ...] = field(default=())
     oldest_pv_us: int | None = None
     """Oldest stored PV sample at the last full read (None: not known)."""
@@ -142,6 +147,8 @@ class WindowCache:
         """Bytes held by the cached samples."""
         self.full_reads = 0
         self.tail_reads = 0
+        self.checks = 0
+        """Refresh checks that found the cached samples complete (no full read needed)."""
 
     def __len__(self) -> int:
         return len(self._loops)
@@ -160,7 +167,9 @@ class WindowCache:
                 start_us, end_us, notes = window_bounds(
                     (c.oldest_pv_us, int(pv_t[-1])), now_us, window_us
                 )
-                if self._usable(c, start_us, end_us):
+                if self._usable(c, start_us, end_us) and await self._complete(
+                    loop, c, from_us, end_us
+                ):
                     fresh = {sig: _before(t, v, end_us) for sig, (t, v) in fresh.items()}
                     return LatestWindow(
                         self._extend(loop, c, fresh, from_us, start_us, end_us),
@@ -183,13 +192,21 @@ class WindowCache:
         return c if c is not None and c.hold == hold else None
 
     def _usable(self, c: CachedWindow, start_us: int, end_us: int) -> bool:
-        """Whether ``c`` plus a tail read gives the window [start, end): it moved forward
-        and a full re-read is not due."""
-        return (
-            c.start_us <= start_us
-            and start_us <= c.end_us <= end_us
-            and end_us - c.full_read_us < self.refresh_us
-        )
+        """Whether ``c`` plus a tail read can give the window [start, end): it moved forward."""
+        return c.start_us <= start_us and start_us <= c.end_us <= end_us
+
+    async def _complete(self, loop: LoopRow, c: CachedWindow, from_us: int, end_us: int) -> bool:
+        """Whether ``c`` still holds every stored sample before ``from_us``: assumed until a
+        refresh is due, then checked by counting the stored samples per signal."""
+        if end_us - c.full_read_us < self.refresh_us:
+            return True
+        cached = {sig: int(np.searchsorted(t, from_us)) for sig, (t, _) in c.series.items()}
+        stored = await self.store.count_series(loop, c.start_us, from_us)
+        if stored != {sig: n for sig, n in cached.items() if n}:
+            return False
+        c.full_read_us = end_us
+        self.checks += 1
+        return True
 
     def _extend(
         self,

@@ -61,23 +61,32 @@ def test_cached_windows_equal_whole_reads(db_url: str) -> None:
             cache = WindowCache(store, lookback_s=60, refresh_s=3600)
             await store.write_samples(_samples(lp, range(0, 1200)))
             window = 600 * S
+            late = T0 + 1490 * S
             for end_k in (1200, 1500, 1800, 2400):
                 if end_k > 1200:
-                    await store.write_samples(_samples(lp, range(end_k - 300, end_k)))
-                if end_k == 1800:  # a late sample inside the look-back replaces the cached one
-                    t = T0 + 1790 * S
-                    await store.write_samples([Sample(lp.tags["pv"], t, t, 99.0, GOOD)])
+                    rows = _samples(lp, range(end_k - 300, end_k))
+                    # PV at 1,490 s arrives only after the read at 1,500 s: inside the next
+                    # read's look-back and window, so that read must pick it up
+                    await store.write_samples(
+                        [r for r in rows if (r.ts_us, r.tag_id) != (late, lp.tags["pv"])]
+                    )
+                if end_k == 1800:
+                    await store.write_samples([Sample(lp.tags["pv"], late, late, 99.0, GOOD)])
                 await _read_as_whole(cache, store, lp, window, T0 + end_k * S)
             assert cache.full_reads == 1 and cache.tail_reads == 3
             assert 0 < cache.nbytes < 600 * 3 * 16 + 1024
-            # a sample written late, before the look-back: seen after the next full read
-            t = T0 + 1900 * S
-            await store.write_samples([Sample(lp.tags["op"], t, t, None, GOOD)])
+            # refresh due at every read: the cached samples are checked against the store's
+            # counts, and read whole again only when a sample was written late, before the
+            # look-back (OP was never stored between 1,800 and 2,100 s)
             end = T0 + 2400 * S
             refreshing = WindowCache(store, lookback_s=60, refresh_s=0)
-            await refreshing.read_latest(lp, window, HOLD, end)
+            for _ in range(2):
+                await _read_as_whole(refreshing, store, lp, window, end)
+            assert (refreshing.full_reads, refreshing.checks, refreshing.tail_reads) == (1, 1, 1)
+            t = T0 + 1900 * S
+            await store.write_samples([Sample(lp.tags["op"], t, t, None, GOOD)])
             await _read_as_whole(refreshing, store, lp, window, end)
-            assert refreshing.full_reads == 2
+            assert refreshing.full_reads == 2 and refreshing.checks == 1
             # no room: every read is whole, nothing kept
             tiny = WindowCache(store, max_bytes=0)
             for _ in range(2):
