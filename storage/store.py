@@ -366,13 +366,12 @@ class Store:
         ids = sorted(loop.tags.values())
         if not ids:
             return {}
+        params: list[Any]
         if self.dialect == "postgresql":
             cond, params = "tag_id = ANY($1::int[]) AND ts_us >= $2 AND ts_us < $3", [ids]
         else:
-            cond, params = (
-                f"tag_id IN ({','.join('?' * len(ids))}) AND ts_us >= ? AND ts_us < ?",
-                ids,
-            )
+            cond = f"tag_id IN ({','.join('?' * len(ids))}) AND ts_us >= ? AND ts_us < ?"
+            params = list(ids)
         sql = f"SELECT tag_id, count(*) FROM samples WHERE {cond} GROUP BY tag_id"
         counts = {int(t): int(n) for t, n in await self._fetch(sql, *params, start_us, end_us)}
         return {sig: counts[t] for sig, t in loop.tags.items() if t in counts}
