@@ -243,13 +243,14 @@ class Store:
         return align(series, start_us, end_us, sample_time_s, before, hold)
 
     async def read_series(
-        self, loop: LoopRow, start_us: int, end_us: int
+        self, loop: LoopRow, start_us: int, end_us: int, *, kept: bool = False
     ) -> dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]]:
         """Per signal: (source timestamps µs, values with NaN for Bad) in [start, end).
 
         The hot path of every scheduled diagnosis: one statement for all the loop's tags (one
         range scan each, in tag order) through the driver's own connection, rows straight into
         numpy (no ORM rows). Timestamps (µs since 1970, < 2**53) are exact as float64.
+        ``kept``: on the connection kept for the scheduler's reads (see ``_fetch``).
         """
         out: dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
         if not loop.tags:
@@ -261,14 +262,14 @@ class Store:
                 "WHERE tag_id = ANY($1::int[]) AND ts_us >= $2 AND ts_us < $3 "
                 "ORDER BY tag_id, ts_us"
             )
-            rows = await self._fetch(sql, ids, start_us, end_us)
+            rows = await self._fetch(sql, ids, start_us, end_us, kept=kept)
         else:
             marks = ",".join("?" * len(ids))
             sql = (  # SQLite has no NaN: Bad (NULL) comes back as +inf (9e999)
                 f"SELECT tag_id, ts_us, ifnull(value, 9e999) FROM samples "
                 f"WHERE tag_id IN ({marks}) AND ts_us >= ? AND ts_us < ? ORDER BY tag_id, ts_us"
             )
-            rows = await self._fetch(sql, *ids, start_us, end_us)
+            rows = await self._fetch(sql, *ids, start_us, end_us, kept=kept)
         if not rows:
             return out
         a = np.fromiter(chain.from_iterable(rows), np.float64, count=3 * len(rows))
@@ -282,27 +283,27 @@ class Store:
                 out[sig] = (t[lo:hi], v[lo:hi])
         return out
 
-    async def _fetch(self, sql: str, *params: Any) -> list[Sequence[Any]]:
+    async def _fetch(self, sql: str, *params: Any, kept: bool = False) -> list[Sequence[Any]]:
         """Rows of one raw statement on the driver's connection (``$n`` parameters on
         PostgreSQL, ``?`` on SQLite): the scheduler's reads skip SQLAlchemy's row layer.
 
-        The statements share one connection kept checked out (a pool checkout and its reset
-        cost ~0.5 ms a read, a quarter of a window's tail read); each runs on its own, outside
-        any transaction, so it sees everything committed before it. A statement that fails on
-        the kept connection (dropped by a database restart) is retried once on a fresh one, as
-        the pool's pre-ping would have done.
+        With ``kept`` (the scheduler's window reads, one after another) the statements share
+        one connection kept checked out: a pool checkout and its reset cost ~0.5 ms a read, a
+        quarter of a window's tail read. Each runs on its own, outside any transaction, so it
+        sees everything committed before it; one that fails on the kept connection (dropped by
+        a database restart) is retried once on a fresh one, as the pool's pre-ping would have
+        done. Other readers (the API) take a pooled connection and never queue behind them.
         """
+        if not kept:
+            async with self.engine.connect() as conn:
+                return await self._run_raw(conn, sql, params)
         async with self._reader_lock:
             while True:
                 fresh = self._reader is None
                 try:
                     if self._reader is None:
                         self._reader = await self.engine.connect()
-                    raw = await self._reader.get_raw_connection()
-                    driver: Any = raw.driver_connection
-                    if self.dialect == "postgresql":
-                        return list(await driver.fetch(sql, *params))
-                    return list(await driver.execute_fetchall(sql, params))
+                    return await self._run_raw(self._reader, sql, params)
                 except Exception:
                     await self._drop_reader()
                     if fresh:
@@ -310,6 +311,15 @@ class Store:
                 except BaseException:  # cancelled: the connection may be mid-statement
                     await self._drop_reader()
                     raise
+
+    async def _run_raw(
+        self, conn: AsyncConnection, sql: str, params: tuple[Any, ...]
+    ) -> list[Sequence[Any]]:
+        raw = await conn.get_raw_connection()
+        driver: Any = raw.driver_connection
+        if self.dialect == "postgresql":
+            return list(await driver.fetch(sql, *params))
+        return list(await driver.execute_fetchall(sql, params))
 
     async def last_before(
         self, loop: LoopRow, at_us: int, signals: Sequence[str]
@@ -337,9 +347,10 @@ class Store:
         return None if span is None else span[1]
 
     async def sample_span_us(
-        self, loop: LoopRow, signal: str | None = None
+        self, loop: LoopRow, signal: str | None = None, *, kept: bool = False
     ) -> tuple[int, int] | None:
-        """Source timestamps of the loop's oldest and newest stored samples (of ``signal``)."""
+        """Source timestamps of the loop's oldest and newest stored samples (of ``signal``);
+        ``kept`` as in ``read_series``."""
         if signal is None:
             ids = list(loop.tags.values())
         else:
@@ -357,12 +368,15 @@ class Store:
             f"SELECT (SELECT min(ts_us) FROM samples WHERE {cond}), "
             f"(SELECT max(ts_us) FROM samples WHERE {cond})"
         )
-        lo, hi = (await self._fetch(sql, *params))[0]
+        lo, hi = (await self._fetch(sql, *params, kept=kept))[0]
         return None if hi is None else (int(lo), int(hi))
 
-    async def count_series(self, loop: LoopRow, start_us: int, end_us: int) -> dict[str, int]:
+    async def count_series(
+        self, loop: LoopRow, start_us: int, end_us: int, *, kept: bool = False
+    ) -> dict[str, int]:
         """Stored samples per signal (Bad ones included) in [start, end); signals without any
-        are left out. Counting reads no values: far cheaper than ``read_series``."""
+        are left out. Counting reads no values: far cheaper than ``read_series``. ``kept`` as
+        in ``read_series``."""
         ids = sorted(loop.tags.values())
         if not ids:
             return {}
@@ -373,7 +387,9 @@ class Store:
             cond = f"tag_id IN ({','.join('?' * len(ids))}) AND ts_us >= ? AND ts_us < ?"
             params = list(ids)
         sql = f"SELECT tag_id, count(*) FROM samples WHERE {cond} GROUP BY tag_id"
-        counts = {int(t): int(n) for t, n in await self._fetch(sql, *params, start_us, end_us)}
+        counts = {
+            int(t): int(n) for t, n in await self._fetch(sql, *params, start_us, end_us, kept=kept)
+        }
         return {sig: counts[t] for sig, t in loop.tags.items() if t in counts}
 
     # -- housekeeping --------------------------------------------------------------------

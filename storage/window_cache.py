@@ -161,7 +161,7 @@ class WindowCache:
         c = self._take(loop, hold)
         if c is not None and c.oldest_pv_us is not None:
             from_us = max(c.start_us, c.end_us - self.lookback_us)
-            fresh = await self.store.read_series(loop, from_us, OPEN_END_US)
+            fresh = await self.store.read_series(loop, from_us, OPEN_END_US, kept=True)
             pv_t = fresh.get("pv", c.series.get("pv", (np.empty(0, np.int64), None)))[0]
             if pv_t.size:
                 start_us, end_us, notes = window_bounds(
@@ -177,7 +177,7 @@ class WindowCache:
                         end_us,
                         notes,
                     )
-        span = await self.store.sample_span_us(loop, "pv")
+        span = await self.store.sample_span_us(loop, "pv", kept=True)
         start_us, end_us, notes = window_bounds(span, now_us, window_us)
         oldest = None if span is None else span[0]
         win = await self._read_whole(loop, start_us, end_us, hold, oldest)
@@ -201,7 +201,7 @@ class WindowCache:
         if end_us - c.full_read_us < self.refresh_us:
             return True
         cached = {sig: int(np.searchsorted(t, from_us)) for sig, (t, _) in c.series.items()}
-        stored = await self.store.count_series(loop, c.start_us, from_us)
+        stored = await self.store.count_series(loop, c.start_us, from_us, kept=True)
         if stored != {sig: n for sig, n in cached.items() if n}:
             return False
         c.full_read_us = end_us
@@ -233,7 +233,7 @@ class WindowCache:
         hold: tuple[str, ...],
         oldest_pv_us: int | None,
     ) -> LoopWindow:
-        series = await self.store.read_series(loop, start_us, end_us)
+        series = await self.store.read_series(loop, start_us, end_us, kept=True)
         before = await self.store.last_before(loop, start_us, hold)
         self.full_reads += 1
         return self._keep(

@@ -128,8 +128,8 @@ def test_upgrade_clusters_an_existing_sqlite_samples_table(tmp_path: Path) -> No
 
 
 def test_window_reads_recover_after_the_connection_is_lost(db_url: str) -> None:
-    """The window reads share one kept connection: when PostgreSQL drops it the read is
-    retried on a fresh one; a failed statement does not break the reads after it."""
+    """The scheduler's window reads share one kept connection: when PostgreSQL drops it the
+    read is retried on a fresh one; a failed statement does not break the reads after it."""
 
     async def body() -> None:
         store = await Store.open(db_url)
@@ -138,7 +138,7 @@ def test_window_reads_recover_after_the_connection_is_lost(db_url: str) -> None:
             await store.write_samples(
                 [Sample(lp.tags["pv"], T0 + k, T0 + k, float(k), GOOD) for k in range(100)]
             )
-            before = await store.read_series(lp, T0, T0 + 100)
+            before = await store.read_series(lp, T0, T0 + 100, kept=True)
             if store.dialect == "postgresql":
                 import asyncpg
 
@@ -151,12 +151,12 @@ def test_window_reads_recover_after_the_connection_is_lost(db_url: str) -> None:
                     )
                 finally:
                     await admin.close()
-                again = await store.read_series(lp, T0, T0 + 100)
+                again = await store.read_series(lp, T0, T0 + 100, kept=True)
                 assert np.array_equal(again["pv"][1], before["pv"][1])
             else:
                 with pytest.raises(Exception):  # noqa: B017 - sqlite3's error
-                    await store._fetch("SELECT no_such_column FROM samples")
-            after = await store.read_series(lp, T0, T0 + 100)
+                    await store._fetch("SELECT no_such_column FROM samples", kept=True)
+            after = await store.read_series(lp, T0, T0 + 100, kept=True)
             assert np.array_equal(after["pv"][1], before["pv"][1])
             assert after["pv"][1].tolist() == [float(k) for k in range(100)]
         finally:
