@@ -255,21 +255,15 @@ class Store:
         out: dict[str, tuple[NDArray[np.int64], NDArray[np.float64]]] = {}
         if not loop.tags:
             return out
-        ids = sorted(loop.tags.values())
-        if self.dialect == "postgresql":
-            sql = (
-                "SELECT tag_id, ts_us, COALESCE(value, 'NaN'::float8) FROM samples "
-                "WHERE tag_id = ANY($1::int[]) AND ts_us >= $2 AND ts_us < $3 "
-                "ORDER BY tag_id, ts_us"
-            )
-            rows = await self._fetch(sql, ids, start_us, end_us, kept=kept)
-        else:
-            marks = ",".join("?" * len(ids))
-            sql = (  # SQLite has no NaN: Bad (NULL) comes back as +inf (9e999)
-                f"SELECT tag_id, ts_us, ifnull(value, 9e999) FROM samples "
-                f"WHERE tag_id IN ({marks}) AND ts_us >= ? AND ts_us < ? ORDER BY tag_id, ts_us"
-            )
-            rows = await self._fetch(sql, *ids, start_us, end_us, kept=kept)
+        cond, params = self._range_filter(loop, start_us, end_us)
+        # SQLite has no NaN: Bad (NULL) comes back as +inf (9e999) there
+        value = (
+            "COALESCE(value, 'NaN'::float8)"
+            if self.dialect == "postgresql"
+            else "ifnull(value, 9e999)"
+        )
+        sql = f"SELECT tag_id, ts_us, {value} FROM samples WHERE {cond} ORDER BY tag_id, ts_us"
+        rows = await self._fetch(sql, *params, kept=kept)
         if not rows:
             return out
         a = np.fromiter(chain.from_iterable(rows), np.float64, count=3 * len(rows))
@@ -282,6 +276,15 @@ class Store:
             if hi > lo:
                 out[sig] = (t[lo:hi], v[lo:hi])
         return out
+
+    def _range_filter(self, loop: LoopRow, start_us: int, end_us: int) -> tuple[str, list[Any]]:
+        """WHERE clause and parameters for the loop's tags over [start, end) (``$n`` parameters
+        on PostgreSQL, ``?`` on SQLite)."""
+        ids = sorted(loop.tags.values())
+        if self.dialect == "postgresql":
+            return "tag_id = ANY($1::int[]) AND ts_us >= $2 AND ts_us < $3", [ids, start_us, end_us]
+        marks = ",".join("?" * len(ids))
+        return f"tag_id IN ({marks}) AND ts_us >= ? AND ts_us < ?", [*ids, start_us, end_us]
 
     async def _fetch(self, sql: str, *params: Any, kept: bool = False) -> list[Sequence[Any]]:
         """Rows of one raw statement on the driver's connection (``$n`` parameters on
@@ -377,19 +380,11 @@ class Store:
         """Stored samples per signal (Bad ones included) in [start, end); signals without any
         are left out. Counting reads no values: far cheaper than ``read_series``. ``kept`` as
         in ``read_series``."""
-        ids = sorted(loop.tags.values())
-        if not ids:
+        if not loop.tags:
             return {}
-        params: list[Any]
-        if self.dialect == "postgresql":
-            cond, params = "tag_id = ANY($1::int[]) AND ts_us >= $2 AND ts_us < $3", [ids]
-        else:
-            cond = f"tag_id IN ({','.join('?' * len(ids))}) AND ts_us >= ? AND ts_us < ?"
-            params = list(ids)
+        cond, params = self._range_filter(loop, start_us, end_us)
         sql = f"SELECT tag_id, count(*) FROM samples WHERE {cond} GROUP BY tag_id"
-        counts = {
-            int(t): int(n) for t, n in await self._fetch(sql, *params, start_us, end_us, kept=kept)
-        }
+        counts = {int(t): int(n) for t, n in await self._fetch(sql, *params, kept=kept)}
         return {sig: counts[t] for sig, t in loop.tags.items() if t in counts}
 
     # -- housekeeping --------------------------------------------------------------------
