@@ -71,22 +71,55 @@ def align(
     present = []
     before = before or {}
     for sig in SIGNALS:
-        out = np.full(n, np.nan)
-        has = np.zeros(n, dtype=bool)
-        if sig in series and series[sig][0].size:
-            t, v = series[sig]
+        t, v = series.get(sig, _EMPTY)
+        idx = np.rint((t - start_us) / step_us).astype(np.int64)
+        if t.size:
             present.append(sig)
-            idx = np.rint((t - start_us) / step_us).astype(np.int64)
+            if _one_per_point(idx, n):  # the usual case: nothing to place, fill or hold
+                values[sig] = np.array(v, dtype=np.float64)
+                continue
             ok = (idx >= 0) & (idx < n)
-            out[idx[ok]] = v[ok]
-            has[idx[ok]] = True
-        if sig in hold and (sig in before or has.any()):
+            idx, v = idx[ok], v[ok]
+        if sig in hold and (sig in before or idx.size):
             if sig not in present:
                 present.append(sig)
-            last = np.maximum.accumulate(np.where(has, np.arange(n), -1))
-            first = before.get(sig, np.nan)
-            out = np.where(last >= 0, out[np.maximum(last, 0)], first)
-        values[sig] = out
+            values[sig] = _held(idx, v, n, before.get(sig, np.nan))
+        else:
+            values[sig] = np.full(n, np.nan)
+            values[sig][idx] = v
     good = np.isfinite(values["pv"]) & np.isfinite(values["op"])
     coverage = float(good.mean()) if n else 0.0
     return LoopWindow(start_us, ts, grid, values, coverage, tuple(present))
+
+
+_EMPTY = (np.empty(0, np.int64), np.empty(0))
+
+
+def _held(idx: NDArray[np.int64], v: FloatArray, n: int, first: float) -> FloatArray:
+    """``n`` grid points holding each sample's value (grid index ``idx``; the later of two on
+    one point wins) until the next sample, ``first`` before the first one."""
+    if not idx.size:
+        return np.full(n, first)
+    if bool((idx[1:] >= idx[:-1]).all()):  # sorted (as stored): runs of values
+        last = np.append(idx[1:] != idx[:-1], True)
+        idx, v = idx[last], v[last]
+        edges = np.concatenate(([0], idx, [n]))
+        return np.repeat(np.concatenate(([first], v)), np.diff(edges))
+    out = np.full(n, np.nan)
+    out[idx] = v
+    has = np.zeros(n, dtype=bool)
+    has[idx] = True
+    last_at = np.maximum.accumulate(np.where(has, np.arange(n), -1))
+    return np.where(last_at >= 0, out[np.maximum(last_at, 0)], first)
+
+
+def _one_per_point(idx: NDArray[np.int64], n: int) -> bool:
+    """Whether grid indices ``idx`` (of sorted timestamps) are exactly 0, 1, ..., n - 1: every
+    grid point has one sample, so aligning is a copy."""
+    return (
+        idx.size == n
+        and n > 0
+        and idx[0] == 0
+        and idx[-1] == n - 1
+        and bool((idx[1:] > idx[:-1]).all())
+    )
