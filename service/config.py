@@ -41,6 +41,8 @@ class StorageConfig(_Strict):
     """``sqlite+aiosqlite:///FILE`` (embedded default) or ``postgresql+asyncpg://USER@HOST/DB``."""
     commit_interval_s: float = Field(1.0, gt=0, le=60)
     retention_days: float = Field(30.0, gt=0)
+    """Samples older than this are deleted every hour, except each tag's newest one (the value
+    a constant set point or mode reported once by OPC UA still holds)."""
     buffer_path: str = "plantcheck-buffer.db"
     """Local durable buffer used while the store is unreachable."""
     buffer_max_samples: int = Field(5_000_000, ge=1000)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import and_, delete, insert, select, text, update
+from sqlalchemy import and_, delete, func, insert, select, text, update
 from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
 from sqlalchemy.sql.elements import ColumnElement
 
@@ -389,10 +389,35 @@ class Store:
 
     # -- housekeeping --------------------------------------------------------------------
     async def purge(self, before_us: int) -> int:
-        """Delete samples older than ``before_us`` (retention); returns how many."""
+        """Delete samples older than ``before_us`` (retention) except each tag's newest one
+        before it; returns how many were deleted.
+
+        A source that reports only changes (OPC UA) stores a constant set point or mode, or a
+        valve stuck for weeks, once: that sample is the value held ever since (``last_before``),
+        and deleting it would leave the windows without SP or mode (a loop in manual mode would
+        then be diagnosed as if automatic). Samples of tags no longer configured go entirely.
+        """
+        deleted = 0
         async with self.engine.begin() as conn:
-            res = await conn.execute(delete(samples).where(samples.c.ts_us < before_us))
-        return int(res.rowcount or 0)
+            for tag_id in (await conn.execute(select(tags.c.id))).scalars().all():
+                newest = (
+                    await conn.execute(
+                        select(func.max(samples.c.ts_us)).where(
+                            samples.c.tag_id == tag_id, samples.c.ts_us < before_us
+                        )
+                    )
+                ).scalar()
+                if newest is not None:
+                    res = await conn.execute(
+                        delete(samples).where(samples.c.tag_id == tag_id, samples.c.ts_us < newest)
+                    )
+                    deleted += int(res.rowcount or 0)
+            res = await conn.execute(
+                delete(samples).where(
+                    samples.c.ts_us < before_us, samples.c.tag_id.not_in(select(tags.c.id))
+                )
+            )
+        return deleted + int(res.rowcount or 0)
 
     async def checkpoint(self) -> None:
         """SQLite: fold the WAL back into the database file (no-op on PostgreSQL)."""

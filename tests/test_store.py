@@ -47,10 +47,39 @@ def test_write_read_window_idempotent_and_bad_is_null(db_url: str) -> None:
             raw = await store.read_samples(lp, T0 + 200_000_000, T0 + 201_000_000, signals=["pv"])
             assert raw == [("pv", T0 + 200_000_000, T0 + 200_000_000, None, BAD_SENSOR_FAILURE)]
             assert await store.latest_sample_us(lp) == T0 + (n - 1) * 1_000_000
-            assert await store.purge(T0 + 300 * 1_000_000) > 0
+            # retention keeps each tag's newest sample before the cutoff (299 s), deletes the rest
+            assert await store.purge(T0 + 300 * 1_000_000) == 2 * 299 + 269  # PV: 30-s gap
             w2 = await store.read_window(lp, T0, T0 + n * 1_000_000, sample_time_s=1.0)
-            assert np.isnan(w2["op"][:300]).all() and np.isfinite(w2["op"][300:]).all()
+            assert np.isnan(w2["op"][:299]).all() and np.isfinite(w2["op"][299:]).all()
             await store.checkpoint()
+        finally:
+            await store.close()
+
+    asyncio.run(body())
+
+
+def test_retention_keeps_the_value_a_constant_signal_holds(db_url: str) -> None:
+    """An OPC UA set point reported once, weeks before the retention cutoff, is still the
+    window's SP after the purge; samples of a tag no longer configured are all deleted."""
+
+    async def body() -> None:
+        store = await Store.open(db_url)
+        try:
+            lp = (await store.sync_config(one_loop_config()))["FIC1"]
+            day = 86_400_000_000
+            rows = [Sample(lp.tags["sp"], T0, T0, 42.0, GOOD)]  # constant since, never resent
+            for k in range(40):  # PV and OP every day for 40 days
+                ts = T0 + k * day
+                rows += [Sample(lp.tags[s], ts, ts, float(k), GOOD) for s in ("pv", "op")]
+            rows += [Sample(99_999, T0 + k * day, T0, 1.0, GOOD) for k in range(3)]  # orphan
+            await store.write_samples(rows)
+            cutoff = T0 + 30 * day
+            assert await store.purge(cutoff) == 2 * 29 + 3
+            assert await store.purge(cutoff) == 0  # nothing more until newer samples age
+            w = await store.read_window(lp, T0 + 35 * day, T0 + 40 * day, sample_time_s=86_400)
+            assert w["sp"].tolist() == [42.0] * 5
+            assert await store.last_before(lp, cutoff, ["pv"]) == {"pv": 29.0}
+            assert await store.count_samples([99_999]) == 0
         finally:
             await store.close()
 
