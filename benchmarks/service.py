@@ -1,7 +1,10 @@
 """Service throughput and API latency.
 
 1. Diagnosis throughput: N loops (copies of the default plant's eight loops) with one hour of
-   1-s samples each in a SQLite store; the scheduler's job (read the window, diagnose it in the
+   1-s samples each in a SQLite store, as their OPC UA source reports them (a value when it
+   changes: PV and OP every second, a constant SP or mode and a stuck valve's position only
+   when they move; ``--every-sample``: every signal every second, as a polled source stores
+   them); the scheduler's job (read the window, diagnose it in the
    worker pool, store verdict, action and S/J) run for every loop: a first pass (whole windows
    read), then passes each after one more period of samples is stored (only new samples read):
    the second estimates every sticky valve's S/J (the second window that finds it sticky), the
@@ -13,7 +16,7 @@
    wrk). Prints p50 and p99 (target p99 <= 50 ms).
 
     python benchmarks/service.py [--loops 96] [--workers 1] [--period 600] [--steady 6]
-                                 [--api-loops 1000] [--clients 10]
+                                 [--every-sample] [--api-loops 1000] [--clients 10]
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 import uvicorn
+from numpy.typing import NDArray
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from helpers import free_port, verdict_of
@@ -79,30 +83,58 @@ def bench_config(folder: Path, n: int, port: int = 8000) -> Config:
     )
 
 
-async def fill(cfg: Config, n: int, seconds: int, plant: Plant | None = None) -> Plant:
-    """Simulate ``seconds`` of the scaled plant (continuing ``plant``) and store every sample."""
+@dataclass
+class Feed:
+    """The simulated plant and what its source reported so far."""
+
+    plant: Plant
+    tag: NDArray[np.int64]
+    """Tag id per (loop, signal of ``SIGNALS``); -1 where the loop has no such tag."""
+    changes_only: bool
+    """Report a value only when it changed (an OPC UA data-change subscription: a constant set
+    point or mode, a stuck valve's position are not reported again); else every second."""
+    last: NDArray[np.float64]
+    """Last reported value per (loop, signal)."""
+
+
+async def fill(
+    cfg: Config, n: int, seconds: int, feed: Feed | None = None, changes_only: bool = True
+) -> Feed:
+    """Simulate ``seconds`` of the scaled plant (continuing ``feed``) and store what its
+    source reports."""
     store = await Store.open(cfg.storage.url)
     rows = await store.sync_config(cfg)
     sc = scaled_scenario(n)
-    if plant is None:
+    if feed is None:
         start = datetime.now(UTC).replace(microsecond=0) - timedelta(seconds=seconds)
-        plant = Plant(sc, start)
-    tag = np.array(
-        [[rows[s.id].tags.get(sig, -1) for sig in SIGNALS] for s in sc.loop], dtype=np.int64
-    )
+        tag = np.array(
+            [[rows[s.id].tags.get(sig, -1) for sig in SIGNALS] for s in sc.loop], dtype=np.int64
+        )
+        feed = Feed(Plant(sc, start), tag, changes_only, np.full(tag.shape, np.nan))
+    plant, mapped = feed.plant, feed.tag >= 0
     batch: list[Sample] = []
     for _ in range(seconds):
         plant.step()
         t = int(plant.time.timestamp() * 1e6)
         v = plant.values
-        for i, j in zip(*np.nonzero(tag >= 0), strict=True):
-            batch.append(Sample(int(tag[i, j]), t, t, float(v[i, j]), 0))
+        report = mapped & (v != feed.last) if feed.changes_only else mapped
+        feed.last = np.where(report, v, feed.last)
+        for i, j in zip(*np.nonzero(report), strict=True):
+            batch.append(Sample(int(feed.tag[i, j]), t, t, float(v[i, j]), 0))
         if len(batch) > 200_000:
             await store.write_samples(batch)
             batch = []
     await store.write_samples(batch)
     await store.close()
-    return plant
+    return feed
+
+
+async def count_rows(cfg: Config) -> int:
+    store = await Store.open(cfg.storage.url)
+    try:
+        return await store.count_samples()
+    finally:
+        await store.close()
 
 
 def _cpu_s(pids: list[int]) -> float:
@@ -133,7 +165,7 @@ class PassFigures:
 
 
 async def diagnose_all(
-    cfg: Config, workers: int, n: int, period_s: int, plant: Plant, steady: int
+    cfg: Config, workers: int, n: int, period_s: int, feed: Feed, steady: int
 ) -> list[PassFigures]:
     """Every loop's job: a first pass, then ``steady`` passes, each after ``period_s`` more
     seconds of plant are stored (new samples only; S/J estimated only where it fell due: a
@@ -146,7 +178,7 @@ async def diagnose_all(
     out = []
     for k in range(1 + steady):
         if k:
-            await fill(cfg, n, period_s, plant)
+            await fill(cfg, n, period_s, feed)
         causes: dict[str, int] = {}
 
         async def one(name: str, causes: dict[str, int] = causes) -> None:
@@ -239,6 +271,12 @@ def main() -> None:
         help="passes after the first (default 6: an hour at the default period, so the hourly "
         "check of the cached windows against the store is in it; >= 2)",
     )
+    ap.add_argument(
+        "--every-sample",
+        action="store_true",
+        help="store every signal every second (as a polled source does), not only the changes "
+        "an OPC UA subscription reports (a constant SP or mode, a stuck valve's position)",
+    )
     ap.add_argument("--api-loops", type=int, default=1000)
     ap.add_argument("--clients", type=int, default=10)
     ap.add_argument("--requests", type=int, default=2000)
@@ -251,12 +289,17 @@ def main() -> None:
             cfg = bench_config(Path(d), args.loops)
             upgrade(cfg.storage.url)
             t = time.perf_counter()
-            plant = asyncio.run(fill(cfg, args.loops, args.seconds))
+            feed = asyncio.run(
+                fill(cfg, args.loops, args.seconds, changes_only=not args.every_sample)
+            )
+            rows = asyncio.run(count_rows(cfg))
             print(
-                f"stored {args.loops} loops x {args.seconds} s in {time.perf_counter() - t:.1f} s"
+                f"stored {args.loops} loops x {args.seconds} s in {time.perf_counter() - t:.1f} s: "
+                f"{rows:,} samples, {rows / args.loops / args.seconds:.2f} per loop and second "
+                + ("(every signal every second)" if args.every_sample else "(changes only)")
             )
             passes = asyncio.run(
-                diagnose_all(cfg, args.workers, args.loops, args.period, plant, args.steady)
+                diagnose_all(cfg, args.workers, args.loops, args.period, feed, args.steady)
             )
             n = args.loops
             for k, p in enumerate(passes):
