@@ -71,6 +71,29 @@ async def _rows(
     return await ing.store.read_samples(lp, signals=[signal])
 
 
+Row = tuple[str, int, int, float | None, int]
+
+
+async def _rows_until(
+    ing: Ingestion, loop: str, signal: str, done: Callable[[list[Row]], bool], timeout_s: float = 30
+) -> list[Row]:
+    """The stored rows once ``done(rows)`` holds (checked every 0.2 s; fails after
+    ``timeout_s``): a connector's reconnection back-off has no fixed duration."""
+    deadline = asyncio.get_running_loop().time() + timeout_s
+    while True:
+        rows = await _rows(ing, loop, signal)
+        if done(rows):
+            return rows
+        assert asyncio.get_running_loop().time() < deadline, f"{loop}.{signal}: {rows[-5:]}"
+        await asyncio.sleep(0.2)
+
+
+def _after_gap(rows: list[Row]) -> list[Row]:
+    """Good rows after the first gap marker (none before one is stored)."""
+    gaps = [r[1] for r in rows if r[4] == BAD_NO_COMMUNICATION]
+    return [r for r in rows if gaps and r[1] > gaps[0] and not is_bad(r[4])]
+
+
 Body = Callable[[Ingestion, PlantRunner, asyncio.Task[None]], Awaitable[None]]
 
 
@@ -97,9 +120,8 @@ def test_modbus_ingest_survives_a_simulator_restart_and_stores_nan_as_bad(
     sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"enabled": False})})
 
     async def body(ing: Ingestion, runner: PlantRunner, task: asyncio.Task[None]) -> None:
-        await asyncio.sleep(1.5)
-        before = await _rows(ing, "FIC101", "pv")
-        assert len(before) >= 5 and all(r[3] is not None and r[4] == 0 for r in before)
+        before = await _rows_until(ing, "FIC101", "pv", lambda rows: len(rows) >= 5)
+        assert all(r[3] is not None and r[4] == 0 for r in before)
         # a NaN from the device is stored as Bad with no value, never as a number
         await send_admin("127.0.0.1", sc.admin.port, "nan 1 FIC101 PV")
         await asyncio.sleep(1.0)
@@ -111,12 +133,10 @@ def test_modbus_ingest_survives_a_simulator_restart_and_stores_nan_as_bad(
         await asyncio.sleep(1.5)
         runner2, task2 = await _start_plant(sc)
         try:
-            await asyncio.sleep(3.0)
-            rows = await _rows(ing, "FIC101", "pv")
+            # the connector retries with back-off (0.5 s doubling, jittered): wait for its data
+            rows = await _rows_until(ing, "FIC101", "pv", lambda rows: len(_after_gap(rows)) >= 5)
             gaps = [r for r in rows if r[4] == BAD_NO_COMMUNICATION]
             assert len(gaps) == 1 and gaps[0][3] is None
-            after = [r for r in rows if r[1] > gaps[0][1] and not is_bad(r[4])]
-            assert len(after) >= 5
             assert ing.connectors[0].state.connected
         finally:
             await _stop_plant(runner2, task2)
