@@ -3,9 +3,10 @@
 1. Diagnosis throughput: N loops (copies of the default plant's eight loops) with one hour of
    1-s samples each in a SQLite store, as their OPC UA source reports them (a value when it
    changes: PV and OP every second, a constant SP or mode and a stuck valve's position only
-   when they move; ``--every-sample``: every signal every second, as a polled source stores
-   them); the scheduler's job (read the window, diagnose it in the
-   worker pool, store verdict, action and S/J) run for every loop: a first pass (whole windows
+   when they move; a Modbus source stores SP and mode alike and PV, OP, MV every poll;
+   ``--every-sample``: every signal every second, the worst case); the scheduler's job (read
+   the window, diagnose it in the worker pool, store verdict, action and S/J) run for every
+   loop: a first pass (whole windows
    read), then passes each after one more period of samples is stored (only new samples read):
    the second estimates every sticky valve's S/J (the second window that finds it sticky), the
    later ones are the steady state. Prints loops per minute per worker and per CPU-minute (main
@@ -274,8 +275,8 @@ def main() -> None:
     ap.add_argument(
         "--every-sample",
         action="store_true",
-        help="store every signal every second (as a polled source does), not only the changes "
-        "an OPC UA subscription reports (a constant SP or mode, a stuck valve's position)",
+        help="store every signal every second (the worst case), not only the changes an OPC "
+        "UA subscription reports (a constant SP or mode, a stuck valve's position)",
     )
     ap.add_argument("--api-loops", type=int, default=1000)
     ap.add_argument("--clients", type=int, default=10)

@@ -6,6 +6,11 @@ A connector module (one per protocol) subclasses ``DeviceConnector`` and impleme
 polls or waits for subscriptions, and on a failure it marks a gap (a Bad
 ``BAD_NO_COMMUNICATION`` sample with no value for every tag), closes, and reconnects with
 exponential backoff and jitter. A failing device never slows the others.
+
+Held tags (a polled source's SP and mode, which keep their value between samples) are passed on
+only when their value or status changes, and again after every gap marker: what an OPC UA
+subscription reports. A set point read every second for a month is one stored sample, not
+2.6 million; the windows hold it from there on (``storage.window.align``).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ import logging
 import random
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
 from plantcheck.storage.samples import Sample
@@ -54,6 +59,7 @@ class DeviceConnector(ABC):
         *,
         backoff_initial_s: float = 0.5,
         backoff_max_s: float = 30.0,
+        held: Collection[int] = (),
     ) -> None:
         self.name = name
         self.sink = sink
@@ -64,6 +70,9 @@ class DeviceConnector(ABC):
         self._stop = asyncio.Event()
         self._gap_us = 0
         self._after_gap: set[int] = set()
+        self.held = frozenset(held)
+        """Tags passed on only when they change (see the module docstring)."""
+        self._held_last: dict[int, tuple[float | None, int]] = {}
 
     @abstractmethod
     async def connect(self) -> None:
@@ -78,6 +87,8 @@ class DeviceConnector(ABC):
         """Close the connection (never raises)."""
 
     def emit(self, rows: Sequence[Sample]) -> None:
+        if self.held:
+            rows = self._held_changes(rows)
         if self._after_gap:
             rows = [self._not_before_gap(r) for r in rows]
         self.state.samples += len(rows)
@@ -90,6 +101,19 @@ class DeviceConnector(ABC):
         self.sink([Sample(tid, t, t, None, BAD_NO_COMMUNICATION) for tid in self.tag_ids])
         self._gap_us = t
         self._after_gap = set(self.tag_ids)
+        self._held_last.clear()
+
+    def _held_changes(self, rows: Sequence[Sample]) -> list[Sample]:
+        """``rows`` without the held tags' samples that repeat the last value and status."""
+        out = []
+        for r in rows:
+            if r.tag_id in self.held:
+                now = (r.value, r.status)
+                if self._held_last.get(r.tag_id) == now:
+                    continue
+                self._held_last[r.tag_id] = now
+            out.append(r)
+        return out
 
     def _not_before_gap(self, r: Sample) -> Sample:
         """The first sample of a tag after a gap marker is never stored before the marker.

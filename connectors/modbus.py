@@ -8,13 +8,16 @@ response. Decoding follows the source's word and byte order and the loop's scali
 - a Modbus exception response → Bad (``BAD_DEVICE_FAILURE``) for the block's tags, no value;
 - NaN/inf or an undecodable block → Bad (``BAD_DATA_ENCODING_INVALID``), no value;
 - a time-out or a dropped connection → a gap marker, then reconnect with backoff.
+
+SP and mode (``held``) are passed on only when they change and after every gap marker, as an
+OPC UA subscription reports them (``connectors.base``); PV, OP and MV every poll.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 from pymodbus.client import AsyncModbusTcpClient
@@ -116,9 +119,10 @@ class ModbusConnector(DeviceConnector):
         byte_order: Order = "big",
         poll_interval_s: float = 1.0,
         timeout_s: float = 2.0,
+        held: Collection[int] = (),
         **kw: float,
     ) -> None:
-        super().__init__(name, sink, [t.tag_id for t in tags], **kw)
+        super().__init__(name, sink, [t.tag_id for t in tags], held=held, **kw)
         self.blocks = plan_blocks(tags)
         self.host, self.port, self.device_id = host, port, device_id
         self.word_order, self.byte_order = word_order, byte_order

@@ -74,7 +74,7 @@ class OpcUaConnector(DeviceConnector):
         timeout_s: float = 4.0,
         **kw: float,
     ) -> None:
-        super().__init__(name, sink, [t for t, _ in tags], **kw)
+        super().__init__(name, sink, [t for t, _ in tags], held=(), **kw)  # changes only already
         self.url = url
         self.nodes = [(tid, ua.NodeId.from_string(n)) for tid, n in tags]
         self.by_node = {n.to_string(): tid for tid, n in self.nodes}

@@ -13,6 +13,7 @@ from plantcheck.connectors.opcua import OpcUaConnector
 from plantcheck.service.config import Config
 from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.window import HELD
 from plantcheck.storage.writer import SampleWriter
 
 
@@ -27,11 +28,14 @@ def build_connectors(
             continue
         if src.protocol == "modbus":
             mtags = []
+            held = set()
             for lp in mine:
                 for sig, address in lp.tags().items():
                     sc = lp.scale.get(sig)  # type: ignore[call-overload]
                     gain, offset = (sc.gain, sc.offset) if sc else (1.0, 0.0)
                     mtags.append(ModbusTag.parse(loops[lp.id].tags[sig], address, gain, offset))
+                    if sig in HELD:  # SP, mode: stored when they change, as OPC UA reports
+                        held.add(loops[lp.id].tags[sig])
             out.append(
                 ModbusConnector(
                     src.name,
@@ -44,6 +48,7 @@ def build_connectors(
                     byte_order=src.byte_order,
                     poll_interval_s=src.poll_interval_s,
                     timeout_s=src.timeout_s,
+                    held=held,
                 )
             )
         else:

@@ -138,6 +138,11 @@ def test_modbus_ingest_survives_a_simulator_restart_and_stores_nan_as_bad(
             gaps = [r for r in rows if r[4] == BAD_NO_COMMUNICATION]
             assert len(gaps) == 1 and gaps[0][3] is None
             assert ing.connectors[0].state.connected
+            # SP is held: stored when it changes and again after the gap, never repeated
+            sp = await _rows_until(ing, "FIC101", "sp", lambda rows: not is_bad(rows[-1][4]))
+            assert all((a[3], a[4]) != (b[3], b[4]) for a, b in itertools.pairwise(sp))
+            assert [r[4] for r in sp].count(BAD_NO_COMMUNICATION) == 1
+            assert len(sp) < len(rows) / 3
         finally:
             await _stop_plant(runner2, task2)
 
