@@ -19,6 +19,7 @@ from plantcheck import __version__
 from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
 from plantcheck.api.reports import build_report
 from plantcheck.storage.results import active_actions, diagnosis_history, loop_statuses
+from plantcheck.storage.window import HELD
 
 HERE = Path(__file__).parent
 templates = Jinja2Templates(directory=HERE / "templates")
@@ -60,7 +61,10 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
         newest = await backend.store.latest_sample_us(row)
         end = (newest or 0) + 1
         start = end - 3_600_000_000
-    win = await backend.store.read_window(row, start, end)
+    # held as the scheduler holds them: an OPC UA valve stuck for an hour has one MV sample
+    win = await backend.store.read_window(
+        row, start, end, hold=backend.held_signals.get(loop_id, HELD)
+    )
     stride = max(1, int(np.ceil(win.t_us.size / MAX_POINTS)))
     plot: dict[str, Any] = {"t": (win.t_us[::stride] / 1e6).round(3).tolist()}
     for sig in ("sp", "pv", "op", "mv"):

@@ -80,6 +80,12 @@ class Runtime:
         """Per-valve stiction limit (S, % of travel) by loop id."""
         return {lp.id: lp.stiction_limit for lp in self.cfg.loop}
 
+    @property
+    def held_signals(self) -> dict[str, tuple[str, ...]]:
+        """Signals that keep their value between samples, by loop id (every signal of an OPC UA
+        source, which reports changes only; SP and mode otherwise)."""
+        return {s.name: s.hold for s in schedules_of(self.cfg)}
+
     async def stop(self) -> None:
         if self.scheduler is not None:
             await self.scheduler.stop()
