@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import and_, delete, func, insert, select, text, update
+from sqlalchemy import and_, bindparam, delete, func, insert, select, text, update
 from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
 from sqlalchemy.sql.elements import ColumnElement
 
@@ -397,21 +397,22 @@ class Store:
         and deleting it would leave the windows without SP or mode (a loop in manual mode would
         then be diagnosed as if automatic). Samples of tags no longer configured go entirely.
         """
+        kept = samples.alias("kept")
+        newest = (
+            select(func.max(kept.c.ts_us))
+            .where(kept.c.tag_id == bindparam("tag"), kept.c.ts_us < before_us)
+            .scalar_subquery()
+        )
+        # one statement per tag, each a range of the (tag_id, ts_us) key; NULL (no sample
+        # before the cutoff) deletes nothing
+        older = delete(samples).where(
+            samples.c.tag_id == bindparam("tag"), samples.c.ts_us < newest
+        )
         deleted = 0
         async with self.engine.begin() as conn:
             for tag_id in (await conn.execute(select(tags.c.id))).scalars().all():
-                newest = (
-                    await conn.execute(
-                        select(func.max(samples.c.ts_us)).where(
-                            samples.c.tag_id == tag_id, samples.c.ts_us < before_us
-                        )
-                    )
-                ).scalar()
-                if newest is not None:
-                    res = await conn.execute(
-                        delete(samples).where(samples.c.tag_id == tag_id, samples.c.ts_us < newest)
-                    )
-                    deleted += int(res.rowcount or 0)
+                res = await conn.execute(older, {"tag": tag_id})
+                deleted += int(res.rowcount or 0)
             res = await conn.execute(
                 delete(samples).where(
                     samples.c.ts_us < before_us, samples.c.tag_id.not_in(select(tags.c.id))
