@@ -8,9 +8,10 @@ polls or waits for subscriptions, and on a failure it marks a gap (a Bad
 exponential backoff and jitter. A failing device never slows the others.
 
 Held tags (a polled source's SP and mode, which keep their value between samples) are passed on
-only when their value or status changes, and again after every gap marker: what an OPC UA
-subscription reports. A set point read every second for a month is one stored sample, not
-2.6 million; the windows hold it from there on (``storage.window.align``).
+only when their value or status changes, again after every gap marker, and at least every
+``HELD_REFRESH_S`` (so a sample dropped on the way, by a full buffer, is not missing for good):
+what an OPC UA subscription reports, plus that refresh. A set point read every second for an
+hour is 6 stored samples, not 3,600; the windows hold it in between (``storage.window.align``).
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
 SampleSink = Callable[[Sequence[Sample]], None]
 
 log = logging.getLogger("plantcheck.connectors")
+
+
+HELD_REFRESH_S = 600.0
+"""Longest time (s, source time) between two passed-on samples of an unchanged held tag."""
 
 
 def now_us() -> int:
@@ -72,7 +77,8 @@ class DeviceConnector(ABC):
         self._after_gap: set[int] = set()
         self.held = frozenset(held)
         """Tags passed on only when they change (see the module docstring)."""
-        self._held_last: dict[int, tuple[float | None, int]] = {}
+        self._held_last: dict[int, tuple[float | None, int, int]] = {}
+        """Per held tag: value, status and source time (µs) of the last sample passed on."""
 
     @abstractmethod
     async def connect(self) -> None:
@@ -104,14 +110,16 @@ class DeviceConnector(ABC):
         self._held_last.clear()
 
     def _held_changes(self, rows: Sequence[Sample]) -> list[Sample]:
-        """``rows`` without the held tags' samples that repeat the last value and status."""
+        """``rows`` without the held tags' samples that repeat the last value and status
+        passed on less than ``HELD_REFRESH_S`` before."""
         out = []
+        refresh_us = int(HELD_REFRESH_S * 1e6)
         for r in rows:
             if r.tag_id in self.held:
-                now = (r.value, r.status)
-                if self._held_last.get(r.tag_id) == now:
+                last = self._held_last.get(r.tag_id)
+                if last and last[:2] == (r.value, r.status) and r.ts_us - last[2] < refresh_us:
                     continue
-                self._held_last[r.tag_id] = now
+                self._held_last[r.tag_id] = (r.value, r.status, r.ts_us)
             out.append(r)
         return out
 

@@ -9,8 +9,9 @@ response. Decoding follows the source's word and byte order and the loop's scali
 - NaN/inf or an undecodable block → Bad (``BAD_DATA_ENCODING_INVALID``), no value;
 - a time-out or a dropped connection → a gap marker, then reconnect with backoff.
 
-SP and mode (``held``) are passed on only when they change and after every gap marker, as an
-OPC UA subscription reports them (``connectors.base``); PV, OP and MV every poll.
+SP and mode (``held``) are passed on only when they change, after every gap marker and every
+10 minutes, as an OPC UA subscription reports them (``connectors.base``); PV, OP and MV every
+poll.
 """
 
 from __future__ import annotations
