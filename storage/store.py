@@ -395,7 +395,9 @@ class Store:
         A source that reports only changes (OPC UA) stores a constant set point or mode, or a
         valve stuck for weeks, once: that sample is the value held ever since (``last_before``),
         and deleting it would leave the windows without SP or mode (a loop in manual mode would
-        then be diagnosed as if automatic). Samples of tags no longer configured go entirely.
+        then be diagnosed as if automatic). Tags are never deleted (a loop's signal keeps its
+        tag), so every stored sample belongs to one of them; each tag's purge is a range of the
+        (tag_id, ts_us) key, never a scan of the table.
         """
         kept = samples.alias("kept")
         newest = (
@@ -403,8 +405,7 @@ class Store:
             .where(kept.c.tag_id == bindparam("tag"), kept.c.ts_us < before_us)
             .scalar_subquery()
         )
-        # one statement per tag, each a range of the (tag_id, ts_us) key; NULL (no sample
-        # before the cutoff) deletes nothing
+        # NULL (no sample before the cutoff) deletes nothing
         older = delete(samples).where(
             samples.c.tag_id == bindparam("tag"), samples.c.ts_us < newest
         )
@@ -413,12 +414,7 @@ class Store:
             for tag_id in (await conn.execute(select(tags.c.id))).scalars().all():
                 res = await conn.execute(older, {"tag": tag_id})
                 deleted += int(res.rowcount or 0)
-            res = await conn.execute(
-                delete(samples).where(
-                    samples.c.ts_us < before_us, samples.c.tag_id.not_in(select(tags.c.id))
-                )
-            )
-        return deleted + int(res.rowcount or 0)
+        return deleted
 
     async def checkpoint(self) -> None:
         """SQLite: fold the WAL back into the database file (no-op on PostgreSQL)."""
