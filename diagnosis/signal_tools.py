@@ -190,7 +190,8 @@ def half_cycles(
     keep = (stops - starts) >= min_samples
     starts, stops = starts[keep], stops[keep]
     n_half = starts.size
-    csum = np.concatenate(([0.0], np.cumsum(np.abs(x))))
+    ax = np.abs(x)
+    csum = np.concatenate(([0.0], np.cumsum(ax)))
     iae = (csum[stops] - csum[starts]) * ts
     if n_half == 0:
         empty_i = np.empty(0, dtype=np.intp)
@@ -211,22 +212,25 @@ def half_cycles(
     rms = np.sqrt(np.mean(vals**2, axis=1))
     rms[rms == 0] = 1.0
     shapes = vals / rms[:, None]
-    # peak over the raw samples of each half-cycle: reduceat over interleaved (start, stop)
-    # pairs gives max |x[start:stop]| at the even positions (stop < x.size always holds)
-    bounds = np.column_stack((starts, stops)).ravel()
-    peak = np.maximum.reduceat(np.abs(x), bounds)[::2]
-    return HalfCycles(shapes, starts, stops, iae, peak)
+    # peak over the raw samples of each half-cycle (stop < x.size always holds)
+    return HalfCycles(shapes, starts, stops, iae, segment_max(ax, starts, stops))
+
+
+def segment_max(x: FloatArray, starts: IntArray, stops: IntArray) -> FloatArray:
+    """``max(x[start:stop])`` of every (non-empty) segment, at once: ``reduceat`` over the
+    interleaved (start, stop) pairs, read at the even positions. Segments must lie inside ``x``
+    with ``stop < x.size``; they may leave gaps but not overlap."""
+    return np.maximum.reduceat(x, np.column_stack((starts, stops)).ravel())[::2]
 
 
 def first_peaks(x: FloatArray, starts: IntArray, stops: IntArray) -> IntArray:
     """Index of the first maximum of ``x[start:stop]`` for every (non-empty) segment, at once.
 
-    ``x`` finite; segments must lie inside it with ``stop < x.size`` (as half-cycles between zero
-    crossings do); they may leave gaps but not overlap.
+    ``x`` finite; segments as for ``segment_max`` (half-cycles between zero crossings).
     """
     if starts.size == 0:
         return np.empty(0, dtype=np.intp)
-    peak = np.maximum.reduceat(x, np.column_stack((starts, stops)).ravel())[::2]
+    peak = segment_max(x, starts, stops)
     lengths = stops - starts
     offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
     idx = np.arange(int(lengths.sum())) + np.repeat(starts - offsets, lengths)
