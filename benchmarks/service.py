@@ -6,12 +6,12 @@
    when they move; a Modbus source stores SP and mode alike and PV, OP, MV every poll;
    ``--every-sample``: every signal every second, the worst case); the scheduler's job (read
    the window, diagnose it in the worker pool, store verdict, action and S/J) run for every
-   loop: a first pass (whole windows
-   read), then passes each after one more period of samples is stored (only new samples read):
-   the second estimates every sticky valve's S/J (the second window that finds it sticky), the
-   later ones are the steady state. Prints loops per minute per worker and per CPU-minute (main
-   process and workers together; target >= 5,000), the CPU time per loop of each, and the
-   hourly mix (one pass with S/J, the others steady, at a 10-min period).
+   loop: a first pass (whole windows read), then passes each after one more period of samples
+   is stored (only new samples read): the second estimates every sticky valve's S/J (the
+   second window that finds it sticky), the later ones are the steady state. Prints loops per
+   minute per worker and per CPU-minute (main process and workers together; target >= 5,000),
+   the CPU time per loop of each, and the hourly mix (one pass with S/J, the others steady, at
+   a 10-min period).
 2. API latency: ``GET /api/v1/loops`` on a store of 1,000 diagnosed loops, served by uvicorn in
    its own process, under C concurrent clients (httpx, and wrk where installed: apt-get install
    wrk). Prints p50 and p99 (target p99 <= 50 ms).

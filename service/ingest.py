@@ -33,9 +33,10 @@ def build_connectors(
                 for sig, address in lp.tags().items():
                     sc = lp.scale.get(sig)  # type: ignore[call-overload]
                     gain, offset = (sc.gain, sc.offset) if sc else (1.0, 0.0)
-                    mtags.append(ModbusTag.parse(loops[lp.id].tags[sig], address, gain, offset))
+                    tag_id = loops[lp.id].tags[sig]
+                    mtags.append(ModbusTag.parse(tag_id, address, gain, offset))
                     if sig in HELD:  # SP, mode: stored when they change, as OPC UA reports
-                        held.add(loops[lp.id].tags[sig])
+                        held.add(tag_id)
             out.append(
                 ModbusConnector(
                     src.name,
