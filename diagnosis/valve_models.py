@@ -47,6 +47,34 @@ def stenman_grid(u: ArrayLike, d: ArrayLike, clip: bool = False) -> FloatArray:
     return out
 
 
+SCALAR_PAIRS = 6
+"""Up to this many pairs a plain Python loop per pair beats the per-step numpy overhead."""
+
+
+def _kano_one(x: list[float], s: float, j: float) -> list[float]:
+    """Kano model for one pair, sample by sample (the BDSIM logic of methods §5.3)."""
+    half = (s - j) / 2.0
+    moving, d, us, y = True, -1.0, x[0] + half, x[0]
+    out = [y]
+    du_old = 0.0
+    for k in range(1, len(x)):
+        uk = x[k]
+        du = uk - x[k - 1]
+        if du * du_old <= 0.0 and moving:  # input stops or reverses: the valve sticks
+            us, moving = x[k - 1], False
+        if moving:
+            y = uk - d * half
+        elif -d * (uk - us) > s:  # breakaway after a reversal
+            d, moving = -d, True
+            y = uk - d * half
+        elif d * (uk - us) > j:  # breakaway in the same direction
+            moving = True
+            y = uk - d * half
+        out.append(y)
+        du_old = du
+    return out
+
+
 def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
     """Kano et al. (2004) model for every pair (S[i], J[i]); returns (n_pairs, len(u)).
 
@@ -56,12 +84,16 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
     s, j = _pairs(S, J)
     half = (s - j) / 2.0
     n_p = s.size
-    out = np.empty((n_p, x.size))
+    if n_p <= SCALAR_PAIRS:
+        xs = x.tolist()
+        return np.array([_kano_one(xs, float(a), float(b)) for a, b in zip(s, j, strict=True)])
+    # time along the first axis, so each step writes one contiguous row; returned transposed
+    out = np.empty((x.size, n_p))
     moving = np.ones(n_p, dtype=bool)
     d = -np.ones(n_p)
     us = x[0] + half
     y = np.full(n_p, x[0])
-    out[:, 0] = y
+    out[0] = y
     du_old = 0.0
     rel = np.empty(n_p)
     tmp = np.empty(n_p)
@@ -88,14 +120,14 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
             np.copyto(y, tmp, where=moving)
         else:
             np.subtract(uk, d * half, out=y)
-        out[:, k] = y
+        out[k] = y
         du_old = du
-    return out
+    return out.T
 
 
 def kano(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
     """Kano et al. (2004) model for one (S, J) pair (% travel)."""
-    return np.asarray(kano_grid(u, [S], [J], clip)[0], dtype=np.float64)
+    return np.array(_kano_one(_prep(u, clip).tolist(), float(S), float(J)))
 
 
 def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
@@ -135,23 +167,57 @@ def choudhury(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArra
     return np.asarray(choudhury_grid(u, [S], [J], clip)[0], dtype=np.float64)
 
 
-def he_grid(u: ArrayLike, fs: ArrayLike, fd: ArrayLike, clip: bool = False) -> FloatArray:
-    """He et al. (2007) model for every pair (f_s[i], f_d[i]) (% travel)."""
-    x = _prep(u, clip)
-    a, b = _pairs(fs, fd)
-    out = np.empty((a.size, x.size))
-    y = np.full(a.size, x[0])
-    for k in range(x.size):
-        ur = x[k] - y
-        move = np.abs(ur) > a
-        y = np.where(move, x[k] - np.sign(ur) * b, y)
-        out[:, k] = y
+def _he_one(x: list[float], fs: float, fd: float, y: float) -> list[float]:
+    """He model for one pair from valve position ``y``, sample by sample (methods §5.4)."""
+    out = []
+    for xk in x:
+        ur = xk - y
+        if ur > fs:
+            y = xk - fd
+        elif ur < -fs:
+            y = xk + fd
+        out.append(y)
     return out
 
 
-def he(u: ArrayLike, fs: float, fd: float, clip: bool = False) -> FloatArray:
-    """He et al. (2007) model for one (f_s, f_d) pair."""
-    return np.asarray(he_grid(u, [fs], [fd], clip)[0], dtype=np.float64)
+def he_grid(
+    u: ArrayLike,
+    fs: ArrayLike,
+    fd: ArrayLike,
+    clip: bool = False,
+    x0: ArrayLike | None = None,
+) -> FloatArray:
+    """He et al. (2007) model for every pair (f_s[i], f_d[i]) (% travel).
+
+    ``x0`` is the valve position before the first sample, per pair (default: the first input).
+    With f_s > f_d the model never forgets it: on a ramp the valve slips in steps of
+    f_s − f_d from wherever it started, and in a cycle whether and when it breaks free at each
+    reversal depends on where it sits in the band u ± f_s.
+    """
+    x = _prep(u, clip)
+    a, b = _pairs(fs, fd)
+    start = np.full(a.size, x[0]) if x0 is None else np.asarray(x0, dtype=np.float64)
+    y = np.array(np.broadcast_to(start, a.shape), dtype=np.float64)
+    if a.size <= SCALAR_PAIRS:
+        xs = x.tolist()
+        return np.array(
+            [_he_one(xs, *pair) for pair in zip(a.tolist(), b.tolist(), y.tolist(), strict=True)]
+        )
+    # time along the first axis, so each step writes one contiguous row; returned transposed
+    out = np.empty((x.size, a.size))
+    for k in range(x.size):
+        ur = x[k] - y
+        y = np.where(np.abs(ur) > a, x[k] - np.sign(ur) * b, y)
+        out[k] = y
+    return out.T
+
+
+def he(
+    u: ArrayLike, fs: float, fd: float, clip: bool = False, x0: float | None = None
+) -> FloatArray:
+    """He et al. (2007) model for one (f_s, f_d) pair; ``x0`` as in :func:`he_grid`."""
+    x = _prep(u, clip)
+    return np.array(_he_one(x.tolist(), float(fs), float(fd), float(x[0] if x0 is None else x0)))
 
 
 def stenman(u: ArrayLike, d: float, clip: bool = False) -> FloatArray:

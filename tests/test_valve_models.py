@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from plantcheck.diagnosis.valve_models import (
+    SCALAR_PAIRS,
     choudhury,
     choudhury_grid,
     he,
@@ -37,8 +38,10 @@ def test_kano_hand_worked_reversal() -> None:
 
 
 def test_choudhury_equals_kano_and_grid_equals_single() -> None:
-    S = np.array([0.5, 2.0, 4.0, 4.0, 3.0])
-    J = np.array([0.0, 1.0, 2.0, 4.0, 3.6])
+    # more pairs than SCALAR_PAIRS: the grid steps all pairs at once, kano() loops per sample
+    S = np.array([0.5, 2.0, 4.0, 4.0, 3.0, 1.0, 6.0, 2.5])
+    J = np.array([0.0, 1.0, 2.0, 4.0, 3.6, 0.2, 1.0, 2.5])
+    assert S.size > SCALAR_PAIRS
     grid_k = kano_grid(U, S, J)
     grid_c = choudhury_grid(U, S, J)
     for i in range(S.size):
@@ -60,6 +63,28 @@ def test_he_saw_tooth_on_slow_ramp() -> None:
     v = he_grid(u, [3.0], [1.0])[0]
     jumps = np.abs(np.diff(v))
     assert np.allclose(jumps[jumps > 1e-9], 2.0, atol=0.02)
+
+
+def test_he_remembers_where_it_started() -> None:
+    # f_s = 3, f_d = 1: on a ramp the valve slips by 2 whenever the input leads it by 3, so a
+    # valve that started 1 lower keeps slipping earlier for the whole ramp (a phase shift)
+    u = np.arange(50.0, 70.0, 0.01)
+    a = he(u, 3.0, 1.0)
+    b = he(u, 3.0, 1.0, x0=49.0)
+    assert np.flatnonzero(np.diff(b) > 0)[0] < np.flatnonzero(np.diff(a) > 0)[0]
+    assert np.abs(a - b)[-500:].min() > 0.5
+    # a pure deadband (f_s = f_d) forgets its start once the input has crossed the band
+    c, d = he(u, 2.0, 2.0), he(u, 2.0, 2.0, x0=48.5)
+    assert np.array_equal(c[500:], d[500:])
+
+
+def test_he_grid_equals_single_with_starts() -> None:
+    fs = np.linspace(0.5, 4.0, SCALAR_PAIRS + 3)
+    fd = 0.4 * fs
+    x0 = U[0] + np.linspace(-2.0, 2.0, fs.size)
+    grid = he_grid(U, fs, fd, x0=x0)
+    for i in range(fs.size):
+        assert np.array_equal(grid[i], he(U, fs[i], fd[i], x0=x0[i]))
 
 
 def test_stenman_stick_band() -> None:
