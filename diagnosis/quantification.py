@@ -7,8 +7,9 @@ model (Srinivasan et al. 2005; Jelali 2008; Bacci di Capaci & Scali 2014):
     PV(k) + a1·PV(k−1) + a2·PV(k−2) = b1·v(k−nk) + b2·v(k−nk−1) + c
 
 For every (S, J) on a grid (S up to 0.9 × the OP excursion, J/S from 0 to 1) the ARX part is
-fitted by least squares (all pairs in one batched solve), the delay nk is taken from the
-cross-correlation of the increments, and the pair is ranked by the *simulation* error of the
+fitted by least squares (all pairs in one batched solve), the delay nk is the one with the
+smallest least-squares residual among the delays a scan of every delay on a subset of the grid
+found for its good pairs, and the pair is ranked by the *simulation* error of the
 model (one-step prediction error hardly depends on (S, J), methods §6.1). The best pair is
 refined on a finer local grid. Integrating (level) loops use the same structure: the band-pass
 prefilter removes the integrator's drift, and fitting PV increments instead only amplified noise.
@@ -23,6 +24,7 @@ Otherwise S and J are None and ``reasons`` says why.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -80,6 +82,10 @@ class QuantificationParams:
     """S* must be at least this share of the OP travel per half-cycle (rule 8) [R]."""
     structure_tie: float = 1.25
     """The two structures count as equally good when their errors are within this factor."""
+    delay_scan_ratio_step: int = 5
+    """The delay scan's subset: every S, every this-many-th J/S of the grid."""
+    delay_scan_tol: float = 1.5
+    """Delays of the subset pairs within this factor of its best error are tried on the grid."""
     min_moves: int = 4
     """A candidate valve trajectory must move at least this many times."""
     reference_fraction: float = 0.02
@@ -111,50 +117,65 @@ class QuantificationResult:
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
 
-@dataclass(frozen=True)
-class _GridFit:
-    S: FloatArray
-    J: FloatArray
-    score: FloatArray
-    fit: FloatArray
-    delay: np.ndarray
-    valves: FloatArray
+class _ArxMoments:
+    """Products of the delayed valve rows with the ARX regressors, shared by every delay.
 
-
-def _normal_equations(
-    v: FloatArray, y: FloatArray, delay: int, na: int, nb: int, start: int
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Batched ARX normal equations (A θ = b) and the residual energy per row of ``v``.
-
-    The PV regressors [-y(k-1)…-y(k-na), 1] are shared by all rows, so their blocks are
-    computed once; the valve blocks are row-wise products.
+    The regressor v(k − nk − i) of delay nk and lag i is the valve row shifted by o = nk + i;
+    delays nk and nk + 1 share the shift nk + 1, so each product is computed once per shift.
+    The PV regressors [−y(k−1) … −y(k−na), 1] are the same for every row and delay.
     """
-    n_p, n = v.shape
-    m = n - start
-    yk = y[start:]
-    ymat = np.column_stack([-y[start - i : n - i] for i in range(1, na + 1)] + [np.ones(m)])
-    vs = [v[:, start - delay - i : n - delay - i] for i in range(nb)]
-    q = na + 1
+
+    def __init__(self, v: FloatArray, y: FloatArray, na: int, start: int) -> None:
+        n = v.shape[1]
+        self.v, self.start, self.n = v, start, n
+        self.yk = y[start:]
+        ymat = np.column_stack(
+            [-y[start - i : n - i] for i in range(1, na + 1)] + [np.ones(n - start)]
+        )
+        self.ygram = ymat.T @ ymat
+        self.yb = ymat.T @ self.yk
+        self.yy = float(self.yk @ self.yk)
+        self._with_y = np.column_stack([ymat, self.yk])
+        self._cross: dict[int, FloatArray] = {}
+        self._prod: dict[tuple[int, int], FloatArray] = {}
+
+    def _seg(self, o: int) -> FloatArray:
+        return self.v[:, self.start - o : self.n - o]
+
+    def cross(self, o: int) -> FloatArray:
+        """(n_rows, na + 2): the row shifted by ``o`` times each PV regressor, then times y."""
+        if o not in self._cross:
+            self._cross[o] = self._seg(o) @ self._with_y
+        return self._cross[o]
+
+    def prod(self, o1: int, o2: int) -> FloatArray:
+        """Per row: the row shifted by ``o1`` times the row shifted by ``o2``."""
+        if (o1, o2) not in self._prod:
+            self._prod[o1, o2] = np.einsum("pm,pm->p", self._seg(o1), self._seg(o2))
+        return self._prod[o1, o2]
+
+
+def _normal_equations(mom: _ArxMoments, delay: int, nb: int) -> tuple[FloatArray, FloatArray]:
+    """Batched ARX normal equations (A θ = b) of one delay, solved for every valve row:
+    the parameters and the residual energy per row."""
+    n_p = mom.v.shape[0]
+    q = mom.ygram.shape[0]
     dim = q + nb
     a_mat = np.empty((n_p, dim, dim))
-    a_mat[:, :q, :q] = ymat.T @ ymat
+    a_mat[:, :q, :q] = mom.ygram
     b_vec = np.empty((n_p, dim))
-    b_vec[:, :q] = ymat.T @ yk
-    for i, vi in enumerate(vs):
-        cross = vi @ ymat
-        a_mat[:, :q, q + i] = cross
-        a_mat[:, q + i, :q] = cross
-        b_vec[:, q + i] = vi @ yk
+    b_vec[:, :q] = mom.yb
+    for i in range(nb):
+        cross = mom.cross(delay + i)
+        a_mat[:, :q, q + i] = cross[:, :q]
+        a_mat[:, q + i, :q] = cross[:, :q]
+        b_vec[:, q + i] = cross[:, q]
         for j in range(i, nb):
-            a_mat[:, q + i, q + j] = a_mat[:, q + j, q + i] = np.einsum("pm,pm->p", vi, vs[j])
+            a_mat[:, q + i, q + j] = a_mat[:, q + j, q + i] = mom.prod(delay + i, delay + j)
     a_mat += 1e-9 * np.eye(dim)[None, :, :] * np.trace(a_mat, axis1=1, axis2=2)[:, None, None]
     theta = np.linalg.solve(a_mat, b_vec[:, :, None])[:, :, 0]
-    resid = float(yk @ yk) - np.sum(theta * b_vec, axis=1)
-    return (
-        np.asarray(theta, dtype=np.float64),
-        np.asarray(resid, dtype=np.float64),
-        b_vec,
-    )
+    resid = mom.yy - np.sum(theta * b_vec, axis=1)
+    return np.asarray(theta, dtype=np.float64), np.asarray(resid, dtype=np.float64)
 
 
 def _stable(a: FloatArray) -> bool:
@@ -172,7 +193,7 @@ def _fit_arx(
     max_delay: int,
     na: int = 2,
     nb: int = 2,
-    delays: range | None = None,
+    delays: Sequence[int] | None = None,
 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
     """ARX(na, nb, nk) for every row of ``v``: the delay nk in 1..max_delay with the smallest
     least-squares residual, then the model is simulated from v alone (output error).
@@ -185,8 +206,9 @@ def _fit_arx(
     best_res = np.full(n_p, np.inf)
     theta = np.zeros((n_p, na + 1 + nb))
     delay = np.ones(n_p, dtype=np.intp)
+    mom = _ArxMoments(v, y, na, start)
     for d in delays if delays is not None else range(1, max_delay + 1):
-        th, res, _ = _normal_equations(v, y, d, na, nb, start)
+        th, res = _normal_equations(mom, d, nb)
         better = res < best_res
         best_res = np.where(better, res, best_res)
         theta[better] = th[better]
@@ -265,7 +287,7 @@ def _valves(prob: _Problem, model: Model, S: FloatArray, J: FloatArray) -> Float
 
 
 def _scores(
-    vf: FloatArray, prob: _Problem, order: int, delays: range | None = None
+    vf: FloatArray, prob: _Problem, order: int, delays: Sequence[int] | None = None
 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
     bad = np.isnan(vf[:, 0])
     score, fit, delay = _fit_arx(np.nan_to_num(vf), prob.yf, prob.max_delay, order, order, delays)
@@ -329,12 +351,17 @@ def _search(
     """Coarse (S, J) grid, then a finer grid around the best pair."""
     s_c, j_c, ds = _grid(s_lo, s_hi, p)
     vf = _valves(prob, model, s_c, j_c)
-    # The delay belongs to the process, not to (S, J): scan every delay on a thin subset of
-    # the grid, then let each pair choose within one sample of the best.
-    thin = np.arange(0, s_c.size, max(1, s_c.size // 24))
+    # The delay belongs to the process, not to (S, J), but S and the delay trade off (a smaller
+    # S slips earlier, a longer delay shifts the response back). Every delay is scanned on a
+    # thin subset of the grid (every S, a few J/S), and the full grid then chooses among the
+    # delays of the subset's good pairs, ± one sample.
+    thin = np.flatnonzero(np.arange(s_c.size) % p.n_ratio % p.delay_scan_ratio_step == 0)
     t_score, _, t_delay = _scores(vf[thin], prob, order)
-    d0 = int(t_delay[int(np.argmin(t_score))]) if np.isfinite(t_score).any() else 1
-    near = range(max(1, d0 - 1), min(prob.max_delay, d0 + 1) + 1)
+    good = np.isfinite(t_score) & (t_score <= p.delay_scan_tol * np.min(t_score, initial=np.inf))
+    chosen = np.unique(t_delay[good]) if good.any() else np.array([1])
+    near = sorted(
+        {int(d + k) for d in chosen for k in (-1, 0, 1)} & set(range(1, prob.max_delay + 1))
+    )
     score, fit, delay = _scores(vf, prob, order, near)
     i = int(np.argmin(score))
     s_best, j_best, best = float(s_c[i]), float(j_c[i]), float(score[i])
