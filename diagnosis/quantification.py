@@ -131,14 +131,14 @@ class _ArxMoments:
     def __init__(self, v: FloatArray, y: FloatArray, na: int, start: int) -> None:
         n = v.shape[1]
         self.v, self.start, self.n = v, start, n
-        self.yk = y[start:]
+        yk = y[start:]
         ymat = np.column_stack(
             [-y[start - i : n - i] for i in range(1, na + 1)] + [np.ones(n - start)]
         )
         self.ygram = ymat.T @ ymat
-        self.yb = ymat.T @ self.yk
-        self.yy = float(self.yk @ self.yk)
-        self._with_y = np.column_stack([ymat, self.yk])
+        self.yb = ymat.T @ yk
+        self.yy = float(yk @ yk)
+        self._with_y = np.column_stack([ymat, yk])
         self._cross: dict[int, FloatArray] = {}
         self._prod: dict[tuple[int, int], FloatArray] = {}
 
@@ -339,21 +339,24 @@ def op_excursion(u: FloatArray, period_samples: float) -> float:
     return float(np.median(np.abs(np.diff(turns))))
 
 
-def _grid(
-    s_lo: float, s_hi: float, p: QuantificationParams
-) -> tuple[FloatArray, FloatArray, float]:
+def _s_step(s_lo: float, s_hi: float, p: QuantificationParams) -> float:
+    """The S grid's step, a ratio: its values are evenly spaced in log S."""
+    return float((s_hi / s_lo) ** (1.0 / (p.n_s - 1)))
+
+
+def _grid(s_lo: float, s_hi: float, p: QuantificationParams) -> tuple[FloatArray, FloatArray]:
     s_vals = np.geomspace(s_lo, s_hi, p.n_s)
     r_vals = np.linspace(0.0, p.max_ratio, p.n_ratio)
     sg, rg = np.meshgrid(s_vals, r_vals, indexing="ij")
-    # the last value is the grid's step in S, a ratio (the S values are evenly spaced in log S)
-    return sg.ravel(), (sg * rg).ravel(), float(s_vals[1] / s_vals[0])
+    return sg.ravel(), (sg * rg).ravel()
 
 
 def _search(
     prob: _Problem, model: Model, s_lo: float, s_hi: float, order: int, p: QuantificationParams
 ) -> _Search:
     """Coarse (S, J) grid, then a finer grid around the best pair."""
-    s_c, j_c, step = _grid(s_lo, s_hi, p)
+    s_c, j_c = _grid(s_lo, s_hi, p)
+    step = _s_step(s_lo, s_hi, p)
     vf = _valves(prob, model, s_c, j_c)
     # The delay belongs to the process, not to (S, J), but S and the delay trade off (a smaller
     # S slips earlier, a longer delay shifts the response back). Every delay is scanned on a
@@ -436,8 +439,7 @@ def quantify_stiction(
         reasons.append(
             f"stiction model explains little more than a linear valve (error ratio {ratio:.2f})"
         )
-    # within one grid step (a ratio) of the top of the grid
-    if main.s_best >= s_hi / (s_hi / s_lo) ** (1.0 / (p.n_s - 1)):
+    if main.s_best >= s_hi / _s_step(s_lo, s_hi, p):  # within one grid step of the top
         reasons.append("S* on the upper edge of the grid (as large as the OP excursion)")
     good = main.score <= p.compact_tol * main.best
     if good.any():
