@@ -11,7 +11,9 @@ fitted by least squares (all pairs in one batched solve), the delay nk is the on
 smallest least-squares residual among the delays a scan of every delay on a subset of the grid
 found for its good pairs, and the pair is ranked by the *simulation* error of the
 model (one-step prediction error hardly depends on (S, J), methods §6.1). The best pair is
-refined on a finer local grid. Integrating (level) loops use the same structure: the band-pass
+refined on a finer local grid. The same search runs with a He valve (He et al. 2007); a He valve
+never forgets where it started (on a ramp it slips every J from there), so each He pair is tried
+from a few starting positions over one slip. Integrating (level) loops use the same structure: the band-pass
 prefilter removes the integrator's drift, and fitting PV increments instead only amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
@@ -55,8 +57,10 @@ class QuantificationParams:
     """Upper end of the S grid, × the median OP excursion (and at most s_max_fraction·pp(OP))."""
     n_ratio: int = 7
     """Grid points over J/S in [0, max_ratio]."""
-    he_n_ratio: int = 4
+    he_n_ratio: int = 5
     """Grid points over J/S for the He structure's coarse pass."""
+    he_phases: int = 3
+    """Starting positions tried for the He valve, evenly spaced over one slip (J) [R]."""
     max_ratio: float = 1.0
     """Largest J/S on the grid (1 = 'no offset' case; Kano allows overshoot J > S)."""
     s_max_fraction: float = 0.9
@@ -86,7 +90,9 @@ class QuantificationParams:
     structure_tie: float = 1.25
     """The two structures count as equally good when their errors are within this factor."""
     delay_scan_ratio_step: int = 3
-    """The delay scan's subset: every S, every this-many-th J/S of the grid."""
+    """The delay scan's subset: every this-many-th J/S of the grid ..."""
+    delay_scan_s_stride: int = 2
+    """... and every this-many-th S."""
     delay_scan_tol: float = 1.5
     """Delays of the subset pairs within this factor of its best error are tried on the grid."""
     min_moves: int = 4
@@ -121,16 +127,19 @@ class QuantificationResult:
 
 
 class _ArxMoments:
-    """Products of the delayed valve rows with the ARX regressors, shared by every delay.
+    """Products of the delayed valve rows with the ARX regressors, for every delay at once.
 
-    The regressor v(k − nk − i) of delay nk and lag i is the valve row shifted by o = nk + i;
-    delays nk and nk + 1 share the shift nk + 1, so each product is computed once per shift.
-    The PV regressors [−y(k−1) … −y(k−na), 1] are the same for every row and delay.
+    The regressor v(k − nk − i) of delay nk and lag i is the valve row shifted by o = nk + i.
+    Its products with the PV regressors [−y(k−1) … −y(k−na), 1, y(k)] come from one matrix
+    product for every shift needed; its products with the other valve regressors (shifts o
+    and o + L, L < nb) from one pass over each row per L, corrected at the window's ends.
     """
 
-    def __init__(self, v: FloatArray, y: FloatArray, na: int, start: int) -> None:
-        n = v.shape[1]
-        self.v, self.start, self.n = v, start, n
+    def __init__(
+        self, v: FloatArray, y: FloatArray, na: int, nb: int, start: int, shifts: Sequence[int]
+    ) -> None:
+        n_p, n = v.shape
+        self.start, self.rows = start, n_p
         yk = y[start:]
         ymat = np.column_stack(
             [-y[start - i : n - i] for i in range(1, na + 1)] + [np.ones(n - start)]
@@ -138,32 +147,46 @@ class _ArxMoments:
         self.ygram = ymat.T @ ymat
         self.yb = ymat.T @ yk
         self.yy = float(yk @ yk)
-        self._with_y = np.column_stack([ymat, yk])
-        self._cross: dict[int, FloatArray] = {}
-        self._prod: dict[tuple[int, int], FloatArray] = {}
-
-    def _seg(self, o: int) -> FloatArray:
-        return self.v[:, self.start - o : self.n - o]
+        with_y = np.column_stack([ymat, yk])
+        width = with_y.shape[1]
+        self._col = {o: i * width for i, o in enumerate(shifts)}
+        # the row shifted by o over k = start … n−1 is v[start − o : n − o]
+        big = np.zeros((n, width * len(shifts)))
+        for o, c in self._col.items():
+            big[start - o : n - o, c : c + width] = with_y
+        self._cross = v @ big
+        # products of v(m) and v(m + L): the whole row, minus the first start − o2 terms and
+        # the last o1 terms of the window (prefix and suffix sums, both short)
+        top = max(shifts) + 1
+        self._total, self._head, self._tail = [], [], []
+        for lag in range(nb):
+            lo, hi = v[:, : n - lag], v[:, lag:]
+            self._total.append(np.einsum("pm,pm->p", lo, hi))
+            head = np.zeros((n_p, start + 1))
+            np.cumsum(lo[:, :start] * hi[:, :start], axis=1, out=head[:, 1:])
+            tail = np.zeros((n_p, top + 1))
+            np.cumsum((lo[:, ::-1][:, :top] * hi[:, ::-1][:, :top]), axis=1, out=tail[:, 1:])
+            self._head.append(head)
+            self._tail.append(tail)
 
     def cross(self, o: int) -> FloatArray:
         """(n_rows, na + 2): the row shifted by ``o`` times each PV regressor, then times y."""
-        if o not in self._cross:
-            self._cross[o] = self._seg(o) @ self._with_y
-        return self._cross[o]
+        c = self._col[o]
+        return self._cross[:, c : c + self.ygram.shape[0] + 1]
 
     def prod(self, o1: int, o2: int) -> FloatArray:
-        """Per row: the row shifted by ``o1`` times the row shifted by ``o2``."""
-        if (o1, o2) not in self._prod:
-            self._prod[o1, o2] = np.einsum("pm,pm->p", self._seg(o1), self._seg(o2))
-        return self._prod[o1, o2]
+        """Per row: the row shifted by ``o1`` times the row shifted by ``o2`` (o2 >= o1)."""
+        lag = o2 - o1
+        out = self._total[lag] - self._head[lag][:, self.start - o2] - self._tail[lag][:, o1]
+        return np.asarray(out, dtype=np.float64)
 
 
 def _normal_equations(mom: _ArxMoments, delay: int, nb: int) -> tuple[FloatArray, FloatArray]:
     """Batched ARX normal equations (A θ = b) of one delay, solved for every valve row:
     the parameters and the residual energy per row."""
-    n_p = mom.v.shape[0]
     q = mom.ygram.shape[0]
     dim = q + nb
+    n_p = mom.rows
     a_mat = np.empty((n_p, dim, dim))
     a_mat[:, :q, :q] = mom.ygram
     b_vec = np.empty((n_p, dim))
@@ -181,13 +204,41 @@ def _normal_equations(mom: _ArxMoments, delay: int, nb: int) -> tuple[FloatArray
     return np.asarray(theta, dtype=np.float64), np.asarray(resid, dtype=np.float64)
 
 
-def _stable(a: FloatArray) -> bool:
-    """Schur stability of 1 + a1 z^-1 (+ a2 z^-2), closed form for orders 1 and 2."""
-    if a.size == 2:
-        return bool(abs(a[1]) < 1.0)
-    if a.size == 3:
-        return bool(abs(a[2]) < 1.0 and abs(a[1]) < 1.0 + a[2])
-    return bool(np.all(np.abs(np.roots(a)) < 1.0))
+def _stable_rows(a: FloatArray) -> np.ndarray:
+    """Schur stability of each row's 1 + a1 z^-1 (+ a2 z^-2), closed form for orders 1 and 2."""
+    if a.shape[1] == 2:
+        return np.asarray(np.abs(a[:, 1]) < 1.0)
+    if a.shape[1] == 3:
+        return np.asarray((np.abs(a[:, 2]) < 1.0) & (np.abs(a[:, 1]) < 1.0 + a[:, 2]))
+    return np.array([bool(np.all(np.abs(np.roots(r)) < 1.0)) for r in a])
+
+
+def _simulation_errors(
+    v: FloatArray, theta: FloatArray, delay: np.ndarray, na: int, y: FloatArray, warm: int
+) -> FloatArray:
+    """Output-error simulation of every row's ARX model (parameters [a1…a_na, c, b1…b_nb],
+    delay in samples) from its valve row alone, starting at rest at the row's first value:
+    the sum of squared errors against ``y`` after the first ``warm`` samples, per row."""
+    n_p = v.shape[0]
+    a = np.column_stack([np.ones(n_p), theta[:, :na]])
+    b = theta[:, na + 1 :]
+    # closed-loop least squares can return an unstable fit: reflect the poles inside the unit
+    # circle (same spectrum shape) and simulate that model
+    for i in np.flatnonzero(~_stable_rows(a)).tolist():
+        roots = np.roots(a[i])
+        roots = np.where(np.abs(roots) > 1.0, 1.0 / np.conj(roots), roots)
+        roots = np.where(np.abs(roots) > 0.999, 0.999 * roots / np.abs(roots), roots)
+        a[i] = np.real(np.poly(roots))
+    # y minus the constant part of each simulation (its steady state from the first value)
+    offset = (theta[:, na] + b.sum(axis=1) * v[:, 0]) / a.sum(axis=1)
+    w = v - v[:, :1]
+    sse = np.empty(n_p)
+    n = v.shape[1]
+    for i in range(n_p):
+        d = int(delay[i])  # the delay as a shift of the input (warm >= d), not as zero taps
+        err = y[warm:] - offset[i] - lfilter(b[i], a[i], w[i, : n - d])[warm - d :]
+        sse[i] = err @ err
+    return sse
 
 
 def _fit_arx(
@@ -209,35 +260,20 @@ def _fit_arx(
     best_res = np.full(n_p, np.inf)
     theta = np.zeros((n_p, na + 1 + nb))
     delay = np.ones(n_p, dtype=np.intp)
-    mom = _ArxMoments(v, y, na, start)
-    for d in delays if delays is not None else range(1, max_delay + 1):
+    candidates = list(delays) if delays is not None else list(range(1, max_delay + 1))
+    mom = _ArxMoments(v, y, na, nb, start, sorted({d + i for d in candidates for i in range(nb)}))
+    for d in candidates:
         th, res = _normal_equations(mom, d, nb)
         better = res < best_res
         best_res = np.where(better, res, best_res)
         theta[better] = th[better]
         delay[better] = d
-    q = na + 1
-    score = np.full(n_p, np.inf)
-    fit = np.full(n_p, -np.inf)
+    # the simulation starts at rest: the first tenth of the window is its warm-up
     warm = max(start, n // 10)
+    sse = _simulation_errors(v, theta, delay, na, y, warm)
     den = float(np.sum((y[warm:] - y[warm:].mean()) ** 2)) or 1.0
-    for i in range(n_p):
-        a = np.concatenate(([1.0], theta[i, :na]))
-        c = theta[i, na]
-        b = theta[i, q:]
-        if not _stable(a):
-            # closed-loop least squares can return an unstable fit: reflect the poles inside
-            # the unit circle (same spectrum shape) and simulate that model
-            roots = np.roots(a)
-            roots = np.where(np.abs(roots) > 1.0, 1.0 / np.conj(roots), roots)
-            roots = np.where(np.abs(roots) > 0.999, 0.999 * roots / np.abs(roots), roots)
-            a = np.real(np.poly(roots))
-        num = np.concatenate((np.zeros(int(delay[i])), b))
-        ysim = lfilter(num, a, v[i] - v[i, 0]) + (c + b.sum() * v[i, 0]) / a.sum()
-        # the simulation starts at rest: the first tenth of the window is its warm-up
-        err = (y - ysim)[warm:]
-        score[i] = float(np.mean(err**2))
-        fit[i] = 100.0 * (1.0 - math.sqrt(float(np.sum(err**2)) / den))
+    score = sse / (n - warm)
+    fit = 100.0 * (1.0 - np.sqrt(sse / den))
     return score, fit, delay
 
 
@@ -270,17 +306,22 @@ class _Problem:
 Model = Literal["kano", "he"]
 
 
-def _he_sj(u: FloatArray, S: ArrayLike, J: ArrayLike) -> FloatArray:
-    """He model parameterised by (S, J): f_s = (S + J)/2, f_d = (S − J)/2."""
+def _he_sj(u: FloatArray, S: ArrayLike, J: ArrayLike, phase: ArrayLike = 0.5) -> FloatArray:
+    """He model parameterised by (S, J): f_s = (S + J)/2, f_d = (S − J)/2, started at
+    u[0] + (phase − ½)·J: on a ramp it slips every J from where it started, so phases 0 and 1
+    give the same slips after the first one."""
     s_arr = np.asarray(S, dtype=np.float64)
     j_arr = np.asarray(J, dtype=np.float64)
-    return he_grid(u, (s_arr + j_arr) / 2.0, (s_arr - j_arr) / 2.0)
+    x0 = u[0] + (np.asarray(phase, dtype=np.float64) - 0.5) * j_arr
+    return he_grid(u, (s_arr + j_arr) / 2.0, (s_arr - j_arr) / 2.0, x0=x0)
 
 
-def _valves(prob: _Problem, model: Model, S: FloatArray, J: FloatArray) -> FloatArray:
+def _valves(
+    prob: _Problem, model: Model, S: FloatArray, J: FloatArray, phase: ArrayLike = 0.5
+) -> FloatArray:
     """Prefiltered valve trajectories for the (S, J) pairs; rows that barely move are NaN."""
     # He et al. (2007) parameterised by S = f_s + f_d, J = f_s − f_d
-    v = kano_grid(prob.u, S, J) if model == "kano" else _he_sj(prob.u, S, J)
+    v = kano_grid(prob.u, S, J) if model == "kano" else _he_sj(prob.u, S, J, phase)
     moves = np.sum(np.abs(np.diff(v, axis=1)) > 1e-12, axis=1)
     b, a = prob.prefilter
     # the same linear filter on both sides keeps PV = G·v and removes slow load drift and noise
@@ -292,9 +333,15 @@ def _valves(prob: _Problem, model: Model, S: FloatArray, J: FloatArray) -> Float
 def _scores(
     vf: FloatArray, prob: _Problem, order: int, delays: Sequence[int] | None = None
 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
-    bad = np.isnan(vf[:, 0])
-    score, fit, delay = _fit_arx(np.nan_to_num(vf), prob.yf, prob.max_delay, order, order, delays)
-    return np.where(bad, np.inf, score), np.where(bad, -np.inf, fit), delay
+    """Simulation error, fit (%) and delay per valve row; NaN rows get an infinite error."""
+    ok = np.flatnonzero(~np.isnan(vf[:, 0]))
+    score = np.full(vf.shape[0], np.inf)
+    fit = np.full(vf.shape[0], -np.inf)
+    delay = np.ones(vf.shape[0], dtype=np.intp)
+    if ok.size:
+        v = vf if ok.size == vf.shape[0] else vf[ok]
+        score[ok], fit[ok], delay[ok] = _fit_arx(v, prob.yf, prob.max_delay, order, order, delays)
+    return score, fit, delay
 
 
 @dataclass(frozen=True)
@@ -308,6 +355,7 @@ class _Search:
     best: float
     fit: float
     delay: int
+    phase: float
 
 
 def op_excursion(u: FloatArray, period_samples: float) -> float:
@@ -344,25 +392,41 @@ def _s_step(s_lo: float, s_hi: float, p: QuantificationParams) -> float:
     return float((s_hi / s_lo) ** (1.0 / (p.n_s - 1)))
 
 
-def _grid(s_lo: float, s_hi: float, p: QuantificationParams) -> tuple[FloatArray, FloatArray]:
+def _grid(
+    s_lo: float, s_hi: float, p: QuantificationParams, phases: int
+) -> tuple[FloatArray, FloatArray, FloatArray, np.ndarray]:
+    """S, J and start phase of every grid point (J = 0 needs one phase only), and which points
+    the delay scan uses (every ``delay_scan_s_stride``-th S, every ``delay_scan_ratio_step``-th
+    J/S)."""
     s_vals = np.geomspace(s_lo, s_hi, p.n_s)
-    r_vals = np.linspace(0.0, p.max_ratio, p.n_ratio)
-    sg, rg = np.meshgrid(s_vals, r_vals, indexing="ij")
-    return sg.ravel(), (sg * rg).ravel()
+    rows = [(0.5, 0)] + [(k / phases, i) for i in range(1, p.n_ratio) for k in range(phases)]
+    ph = np.array([r[0] for r in rows])
+    ri = np.array([r[1] for r in rows])
+    r_vals = np.linspace(0.0, p.max_ratio, p.n_ratio)[ri]
+    s = np.repeat(s_vals, ph.size)
+    thin_s = np.arange(p.n_s) % p.delay_scan_s_stride == 0
+    thin = np.repeat(thin_s, ph.size) & np.tile(ri % p.delay_scan_ratio_step == 0, p.n_s)
+    return s, s * np.tile(r_vals, p.n_s), np.tile(ph, p.n_s), thin
 
 
 def _search(
-    prob: _Problem, model: Model, s_lo: float, s_hi: float, order: int, p: QuantificationParams
+    prob: _Problem,
+    model: Model,
+    s_lo: float,
+    s_hi: float,
+    order: int,
+    p: QuantificationParams,
 ) -> _Search:
-    """Coarse (S, J) grid, then a finer grid around the best pair."""
-    s_c, j_c = _grid(s_lo, s_hi, p)
+    """Coarse (S, J) grid, then a finer grid around the best pair; for the He structure each
+    pair from ``he_phases`` starting positions (the valve never forgets where it started)."""
+    phases = p.he_phases if model == "he" else 1
+    s_c, j_c, ph_c, thin = _grid(s_lo, s_hi, p, phases)
     step = _s_step(s_lo, s_hi, p)
-    vf = _valves(prob, model, s_c, j_c)
+    vf = _valves(prob, model, s_c, j_c, ph_c)
     # The delay belongs to the process, not to (S, J), but S and the delay trade off (a smaller
     # S slips earlier, a longer delay shifts the response back). Every delay is scanned on a
-    # thin subset of the grid (every S, a few J/S), and the full grid then chooses among the
-    # delays of the subset's good pairs, ± one sample.
-    thin = np.flatnonzero(np.arange(s_c.size) % p.n_ratio % p.delay_scan_ratio_step == 0)
+    # thin subset of the grid (every other S, a few J/S), and the full grid then chooses among
+    # the delays of the subset's good pairs, ± one sample.
     t_score, _, t_delay = _scores(vf[thin], prob, order)
     good = np.isfinite(t_score) & (t_score <= p.delay_scan_tol * np.min(t_score, initial=np.inf))
     chosen = np.unique(t_delay[good]) if good.any() else np.array([1])
@@ -372,19 +436,20 @@ def _search(
     score, fit, delay = _scores(vf, prob, order, near)
     i = int(np.argmin(score))
     s_best, j_best, best = float(s_c[i]), float(j_c[i]), float(score[i])
-    fit_best, d_best = float(fit[i]), int(delay[i])
+    fit_best, d_best, ph_best = float(fit[i]), int(delay[i]), float(ph_c[i])
     s_f = np.geomspace(s_best / step, s_best * step, p.refine)
     r_best = j_best / s_best if s_best > 0 else 0.0
     dr = p.max_ratio / (p.n_ratio - 1)
     r_f = np.linspace(max(0.0, r_best - dr), min(p.max_ratio, r_best + dr), p.refine)
-    sg, rg = np.meshgrid(s_f, r_f, indexing="ij")
-    s_fl, j_fl = sg.ravel(), (sg * rg).ravel()
-    score_f, fit_f, delay_f = _scores(_valves(prob, model, s_fl, j_fl), prob, order, near)
+    ph_f = ph_best + np.array([-0.5, 0.0, 0.5]) / phases if phases > 1 else np.array([0.5])
+    sg, rg, pg = np.meshgrid(s_f, r_f, ph_f, indexing="ij")
+    s_fl, j_fl, ph_fl = sg.ravel(), (sg * rg).ravel(), pg.ravel()
+    score_f, fit_f, delay_f = _scores(_valves(prob, model, s_fl, j_fl, ph_fl), prob, order, near)
     k = int(np.argmin(score_f))
     if score_f[k] < best:
         s_best, j_best, best = float(s_fl[k]), float(j_fl[k]), float(score_f[k])
-        fit_best, d_best = float(fit_f[k]), int(delay_f[k])
-    return _Search(model, s_c, j_c, score, s_best, j_best, best, fit_best, d_best)
+        fit_best, d_best, ph_best = float(fit_f[k]), int(delay_f[k]), float(ph_fl[k])
+    return _Search(model, s_c, j_c, score, s_best, j_best, best, fit_best, d_best, ph_best)
 
 
 def quantify_stiction(
@@ -451,9 +516,15 @@ def quantify_stiction(
     # may fit as well as S*.
     if main.s_best > 0 and math.isfinite(main.best):
         ratio_j = main.j_best / main.s_best
-        s_line = main.s_best * np.array(p.tradeoff_factors)
+        n_ph = p.he_phases if main.model == "he" and ratio_j > 0 else 1
+        # a He valve's start phase belongs to (S, J): every phase is tried along the line
+        s_line = np.repeat(main.s_best * np.array(p.tradeoff_factors), n_ph)
+        ph_line = np.tile(np.arange(n_ph) / n_ph, len(p.tradeoff_factors))
         line_score, _, _ = _scores(
-            _valves(prob, main.model, s_line, ratio_j * s_line), prob, 2, range(1, max_delay + 1)
+            _valves(prob, main.model, s_line, ratio_j * s_line, ph_line),
+            prob,
+            2,
+            range(1, max_delay + 1),
         )
         rivals = s_line[line_score <= p.compact_tol * main.best]
         if rivals.size:
@@ -474,7 +545,11 @@ def quantify_stiction(
         )
     # rule 6: in a stick-slip cycle the valve is stuck most of the time (OP reverses soon
     # after each slip); a small deadband on a smoothly cycling OP is stuck only near reversals
-    v_best = (kano_grid if main.model == "kano" else _he_sj)(u, [main.s_best], [main.j_best])[0]
+    v_best = (
+        kano_grid(u, [main.s_best], [main.j_best])
+        if main.model == "kano"
+        else _he_sj(u, [main.s_best], [main.j_best], main.phase)
+    )[0]
     stuck = float(np.mean(np.abs(np.diff(v_best)) < 1e-12))
     if stuck < p.min_stuck_fraction:
         reasons.append(

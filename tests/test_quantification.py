@@ -42,6 +42,18 @@ def test_sticky_flow_loop_quantified(S: float, J: float) -> None:
     assert abs(q.J - J) <= max(0.5, 0.3 * J)
 
 
+def test_he_valve_found_from_its_start_phase() -> None:
+    # a He valve slips on a ramp in steps of J from wherever it started: the He structure
+    # is tried from several starting positions, and the right one reproduces the valve
+    op, pv, _, period = _loop(valve="he", S=3.0, J=1.5)
+    q = quantify_stiction(op, pv, 1.0, period)
+    assert q.reliable, q.reasons
+    assert q.model == "he"
+    assert q.S is not None and q.J is not None
+    assert abs(q.S - 3.0) <= 0.15
+    assert abs(q.J - 1.5) <= 0.2
+
+
 @pytest.mark.parametrize("kind", ["sine_disturbance", "aggressive", "slow_sine", "random_load"])
 def test_healthy_valve_gets_no_reliable_S(kind: str) -> None:
     dist = {
