@@ -13,8 +13,9 @@ found for its good pairs, and the pair is ranked by the *simulation* error of th
 model (one-step prediction error hardly depends on (S, J), methods §6.1). The best pair is
 refined on a finer local grid. The same search runs with a He valve (He et al. 2007); a He valve
 never forgets where it started (on a ramp it slips every J from there), so each He pair is tried
-from a few starting positions over one slip. Integrating (level) loops use the same structure: the band-pass
-prefilter removes the integrator's drift, and fitting PV increments instead only amplified noise.
+from a few starting positions over one slip. Integrating (level) loops use the same structure:
+the band-pass prefilter removes the integrator's drift, and fitting PV increments instead only
+amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
 simulated fit is good enough, the stiction model explains clearly more than a linear valve,
