@@ -119,6 +119,8 @@ class DiagnosisScheduler:
         self.verdicts = VerdictWriter(store)
         self._states_stale = False
         self._states_task: asyncio.Task[None] | None = None
+        self._in_flight: set[asyncio.Task[Any]] = set()
+        """The scheduled runs under way (drained by :meth:`stop`)."""
 
     @property
     def running(self) -> bool:
@@ -158,8 +160,20 @@ class DiagnosisScheduler:
             *(loop.run_in_executor(self._pool, _warm) for _ in range(self.workers))
         )
 
-    async def stop(self) -> None:
+    async def stop(self, drain_s: float = 10.0) -> None:
+        """Stop scheduling, let the diagnoses under way finish (at most ``drain_s`` seconds;
+        the scheduler cancels the rest) and write their verdicts, then close the pool."""
         if self._scheduler is not None and self._scheduler.running:
+            self._scheduler.pause()
+            if self._in_flight:
+                _, late = await asyncio.wait(set(self._in_flight), timeout=drain_s)
+                if late:
+                    log.warning(
+                        "%d diagnoses still running after %g s at shutdown: cancelled, "
+                        "they run again at the next start",
+                        len(late),
+                        drain_s,
+                    )
             self._scheduler.shutdown(wait=False)
         await self.verdicts.close()
         if self._states_task is not None:
@@ -170,6 +184,16 @@ class DiagnosisScheduler:
 
     async def run_loop(self, name: str) -> str | None:
         """Diagnose loop ``name`` now; returns its cause (None when the job failed)."""
+        task = asyncio.current_task()
+        if task is None:  # not run as a task (never by the scheduler): nothing to drain
+            return await self._run_loop(name)
+        self._in_flight.add(task)
+        try:
+            return await self._run_loop(name)
+        finally:
+            self._in_flight.discard(task)
+
+    async def _run_loop(self, name: str) -> str | None:
         sched = self.schedules[name]
         st = self.state[name]
         t0 = time.perf_counter()
