@@ -411,12 +411,7 @@ def _grid(
 
 
 def _search(
-    prob: _Problem,
-    model: Model,
-    s_lo: float,
-    s_hi: float,
-    order: int,
-    p: QuantificationParams,
+    prob: _Problem, model: Model, s_lo: float, s_hi: float, order: int, p: QuantificationParams
 ) -> _Search:
     """Coarse (S, J) grid, then a finer grid around the best pair; for the He structure each
     pair from ``he_phases`` starting positions (the valve never forgets where it started)."""
