@@ -203,11 +203,22 @@ def he_grid(
         return np.array(
             [_he_one(xs, *pair) for pair in zip(a.tolist(), b.tolist(), y.tolist(), strict=True)]
         )
-    # time along the first axis, so each step writes one contiguous row; returned transposed
+    # time along the first axis, so each step writes one contiguous row; returned transposed.
+    # In place, no temporaries: the valve breaks free upwards when x − y > f_s, downwards when
+    # x − y < −f_s, and lands f_d behind the input.
     out = np.empty((x.size, a.size))
+    ur, tmp = np.empty(a.size), np.empty(a.size)
+    up, down = np.empty(a.size, dtype=bool), np.empty(a.size, dtype=bool)
+    neg_a = -a
     for k in range(x.size):
-        ur = x[k] - y
-        y = np.where(np.abs(ur) > a, x[k] - np.sign(ur) * b, y)
+        xk = x[k]
+        np.subtract(xk, y, out=ur)
+        np.greater(ur, a, out=up)
+        np.less(ur, neg_a, out=down)
+        np.subtract(xk, b, out=tmp)
+        np.copyto(y, tmp, where=up)
+        np.add(xk, b, out=tmp)
+        np.copyto(y, tmp, where=down)
         out[k] = y
     return out.T
 
