@@ -307,10 +307,15 @@ class _Problem:
 Model = Literal["kano", "he"]
 
 
-def _he_sj(u: FloatArray, S: ArrayLike, J: ArrayLike, phase: ArrayLike = 0.5) -> FloatArray:
-    """He model parameterised by (S, J): f_s = (S + J)/2, f_d = (S − J)/2, started at
-    u[0] + (phase − ½)·J: on a ramp it slips every J from where it started, so phases 0 and 1
-    give the same slips after the first one."""
+def _valve_positions(
+    u: FloatArray, model: Model, S: ArrayLike, J: ArrayLike, phase: ArrayLike = 0.5
+) -> FloatArray:
+    """Valve position of the model for every (S, J) pair, one row each. The He model
+    (He et al. 2007) is parameterised by (S, J): f_s = (S + J)/2, f_d = (S − J)/2, and starts
+    at u[0] + (phase − ½)·J: on a ramp it slips every J from where it started, so phases 0
+    and 1 give the same slips after the first one (the Kano model ignores ``phase``)."""
+    if model == "kano":
+        return kano_grid(u, S, J)
     s_arr = np.asarray(S, dtype=np.float64)
     j_arr = np.asarray(J, dtype=np.float64)
     x0 = u[0] + (np.asarray(phase, dtype=np.float64) - 0.5) * j_arr
@@ -321,8 +326,7 @@ def _valves(
     prob: _Problem, model: Model, S: FloatArray, J: FloatArray, phase: ArrayLike = 0.5
 ) -> FloatArray:
     """Prefiltered valve trajectories for the (S, J) pairs; rows that barely move are NaN."""
-    # He et al. (2007) parameterised by S = f_s + f_d, J = f_s − f_d
-    v = kano_grid(prob.u, S, J) if model == "kano" else _he_sj(prob.u, S, J, phase)
+    v = _valve_positions(prob.u, model, S, J, phase)
     vt = v.T  # time along the first axis: the grids' own memory layout, one pass
     moves = np.count_nonzero(vt[1:] != vt[:-1], axis=0)
     b, a = prob.prefilter
@@ -483,7 +487,7 @@ def quantify_stiction(
     s_hi = min(s_max, p.grid_high * excursion)
     s_lo = min(p.grid_low * excursion, 0.5 * s_hi)
     kano_fit = _search(prob, "kano", s_lo, s_hi, 2, p)
-    # the He structure mainly checks the Kano one (rule 5): a coarser J/S grid before refining
+    # the He structure: fewer J/S values, each from he_phases starting positions
     he_fit = _search(prob, "he", s_lo, s_hi, 2, replace(p, n_ratio=p.he_n_ratio))
     main, other = (kano_fit, he_fit) if kano_fit.best <= he_fit.best else (he_fit, kano_fit)
     # rule 3 reference: a deadband of 2 % of the grid range. With v = OP exactly the closed-
@@ -542,11 +546,7 @@ def quantify_stiction(
         )
     # rule 6: in a stick-slip cycle the valve is stuck most of the time (OP reverses soon
     # after each slip); a small deadband on a smoothly cycling OP is stuck only near reversals
-    v_best = (
-        kano_grid(u, [main.s_best], [main.j_best])
-        if main.model == "kano"
-        else _he_sj(u, [main.s_best], [main.j_best], main.phase)
-    )[0]
+    v_best = _valve_positions(u, main.model, [main.s_best], [main.j_best], main.phase)[0]
     stuck = float(np.mean(np.abs(np.diff(v_best)) < 1e-12))
     if stuck < p.min_stuck_fraction:
         reasons.append(
