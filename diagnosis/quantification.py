@@ -19,8 +19,10 @@ amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
 simulated fit is good enough, the stiction model explains clearly more than a linear valve,
-the optimum is well posed (not on the grid edge, a compact low-error region) and a second
-model structure (ARX on increments, robust to non-stationary disturbances) agrees on S.
+the optimum is well posed (not on the grid edge, a compact low-error region, no distant S and
+no other delay fitting nearly as well), the other valve model (He or Kano) agrees on S when it
+fits about as well, and the estimated valve behaves as in a stick-slip cycle (stuck most of the
+time, about one slip per half-cycle, S most of the OP travel per half-cycle).
 Otherwise S and J are None and ``reasons`` says why.
 """
 
@@ -78,6 +80,10 @@ class QuantificationParams:
     """The low-error region is where the error is within this factor of the minimum (rule 4)."""
     max_region_extent: float = 0.5
     """Its S-extent must be below this fraction of S* (rule 4)."""
+    rival_distance: float = 0.25
+    """Rule 4c: coarse-grid S values more than this fraction of S* away from S* ..."""
+    rival_tol: float = 1.15
+    """... must all fit clearly worse: their best error above this factor of the minimum [R]."""
     max_structure_disagreement: float = 0.3
     """Relative difference of S* between the Kano and He valve structures (rule 5)."""
     min_stuck_fraction: float = 0.5
@@ -512,6 +518,18 @@ def quantify_stiction(
         extent = float(main.S[good].max() - main.S[good].min())
         if main.s_best > 0 and extent > p.max_region_extent * main.s_best:
             reasons.append(f"S not identifiable: low-error region spans {extent:.2f} % of OP")
+    # rule 4c: a stick-slip fit is sharp in S (a valve model a few % off misses or adds
+    # slips), so an S far from S* that fits nearly as well means the data do not fix S: on slow
+    # loops a smaller S with a longer delay often fits as well as the true one
+    far = np.abs(main.S - main.s_best) > p.rival_distance * main.s_best
+    if far.any() and math.isfinite(main.best):
+        k_far = int(np.argmin(np.where(far, main.score, np.inf)))
+        if main.score[k_far] <= p.rival_tol * main.best:
+            reasons.append(
+                f"S not identifiable: S = {main.S[k_far]:.2f} % fits within "
+                f"{100 * (main.score[k_far] / main.best - 1):.0f} % as well as S* = "
+                f"{main.s_best:.2f} %"
+            )
     # rule 4b: S and the delay can trade off (a smaller S slips earlier, a longer delay shifts
     # the response back). Along S with J/S fixed and every delay free, no clearly different S
     # may fit as well as S*.

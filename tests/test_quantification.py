@@ -11,6 +11,7 @@ from plantcheck.diagnosis.ellipse import apparent_stiction, fit_ellipse
 from plantcheck.diagnosis.oscillation import detect_oscillation
 from plantcheck.diagnosis.quantification import quantify_stiction
 from plantcheck.diagnosis.stiction_trend import WEEK_S, TrendParams, stiction_trend
+from plantcheck.simulator.cases import process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
 
 FLOW = Process(K=1.0, tau_s=2.0, theta_s=1.0)
@@ -114,3 +115,28 @@ def test_trend_projects_limit_crossing() -> None:
     assert few.slope_per_week is None and "at least" in few.note
     none = stiction_trend(t, S, S, np.zeros(10, bool))
     assert none.n_used == 0 and none.current_S is None
+
+
+def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
+    # a temperature loop (τ = 20 s, θ = 5 s) with a Kano valve S = J = 5: a smaller S with a
+    # longer delay fits about as well as the true one, so S is not identifiable (rule 4c)
+    su = process_setup("temperature")
+    cfg = LoopConfig(
+        process=su.process,
+        controller=su.pi,
+        valve="kano",
+        S=5.0,
+        J=5.0,
+        disturbances=(Disturbance(random_walk_std=0.05),),
+        noise_std=0.05,
+        sample_time_s=su.ts,
+        n_samples=3600,
+        warmup_samples=486,
+        seed=143457352,
+    )
+    r = simulate_loop(cfg)
+    osc = detect_oscillation(r.sp - r.pv, su.ts)
+    q = quantify_stiction(r.op, r.pv, su.ts, osc.period_s)
+    assert q.S_best < 4.25  # the best fit is 20 % or more below the true S
+    assert not q.reliable and q.S is None
+    assert any("fits within" in reason for reason in q.reasons), q.reasons
