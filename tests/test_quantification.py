@@ -137,6 +137,6 @@ def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
     r = simulate_loop(cfg)
     osc = detect_oscillation(r.sp - r.pv, su.ts)
     q = quantify_stiction(r.op, r.pv, su.ts, osc.period_s)
-    assert q.S_best < 4.25  # the best fit is 20 % or more below the true S
+    assert q.S_best < 4.25  # the best fit (3.9 %) is more than 15 % below the true S
     assert not q.reliable and q.S is None
     assert any("fits within" in reason for reason in q.reasons), q.reasons
