@@ -99,6 +99,7 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
     tmp = np.empty(n_p)
     rev = np.empty(n_p, dtype=bool)
     same = np.empty(n_p, dtype=bool)
+    neg_s = -s
     for k in range(1, x.size):
         uk = x[k]
         du = uk - x[k - 1]
@@ -106,20 +107,18 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
             # input stops or reverses: every moving valve sticks where the input was
             np.copyto(us, x[k - 1], where=moving)
             moving[:] = False
-        if not moving.all():
-            np.subtract(uk, us, out=rel)
-            np.multiply(d, rel, out=tmp)
-            np.less(tmp, -s, out=rev)  # -d·rel > S: breakaway after a reversal
-            np.greater(tmp, j, out=same)  # d·rel > J: breakaway in the same direction
-            same &= ~rev
-            np.negative(d, out=d, where=rev)
-            moving |= rev
-            moving |= same
-            np.multiply(d, half, out=tmp)
-            np.subtract(uk, tmp, out=tmp)
-            np.copyto(y, tmp, where=moving)
-        else:
-            np.subtract(uk, d * half, out=y)
+        # A moving valve has moved on in its direction d since it broke away (d·rel > 0), so
+        # the breakaway tests below leave it moving with its d: they need no mask.
+        np.subtract(uk, us, out=rel)
+        np.multiply(d, rel, out=tmp)
+        np.less(tmp, neg_s, out=rev)  # -d·rel > S: breakaway after a reversal
+        np.greater(tmp, j, out=same)  # d·rel > J: breakaway in the same direction
+        np.negative(d, out=d, where=rev)
+        moving |= rev
+        moving |= same
+        np.multiply(d, half, out=tmp)
+        np.subtract(uk, tmp, out=tmp)
+        np.copyto(y, tmp, where=moving)
         out[k] = y
         du_old = du
     return out.T
@@ -204,21 +203,19 @@ def he_grid(
             [_he_one(xs, *pair) for pair in zip(a.tolist(), b.tolist(), y.tolist(), strict=True)]
         )
     # time along the first axis, so each step writes one contiguous row; returned transposed.
-    # In place, no temporaries: the valve breaks free upwards when x − y > f_s, downwards when
-    # x − y < −f_s, and lands f_d behind the input.
+    # In place, no temporaries: the valve breaks free when |x − y| > f_s and lands f_d behind
+    # the input (x − f_d upwards, x + f_d downwards).
     out = np.empty((x.size, a.size))
     ur, tmp = np.empty(a.size), np.empty(a.size)
-    up, down = np.empty(a.size, dtype=bool), np.empty(a.size, dtype=bool)
-    neg_a = -a
+    slip = np.empty(a.size, dtype=bool)
     for k in range(x.size):
         xk = x[k]
         np.subtract(xk, y, out=ur)
-        np.greater(ur, a, out=up)
-        np.less(ur, neg_a, out=down)
-        np.subtract(xk, b, out=tmp)
-        np.copyto(y, tmp, where=up)
-        np.add(xk, b, out=tmp)
-        np.copyto(y, tmp, where=down)
+        np.abs(ur, out=tmp)
+        np.greater(tmp, a, out=slip)
+        np.copysign(b, ur, out=tmp)
+        np.subtract(xk, tmp, out=tmp)
+        np.copyto(y, tmp, where=slip)
         out[k] = y
     return out.T
 
