@@ -20,11 +20,12 @@ the band-pass prefilter removes the integrator's drift, and fitting PV increment
 amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
-simulated fit is good enough, the stiction model explains clearly more than a linear valve,
-the optimum is well posed (not on the grid edge, a compact low-error region, no distant S and
-no other delay fitting nearly as well), the other valve model (He or Kano) agrees on S when it
-fits about as well, and the estimated valve behaves as in a stick-slip cycle (stuck most of the
-time, about one slip per half-cycle, S most of the OP travel per half-cycle).
+window holds at least ten oscillation periods, the simulated fit is good enough, the stiction
+model explains clearly more than a linear valve, the optimum is well posed (not on the grid
+edge, a compact low-error region, no distant S and no other delay fitting nearly as well), the
+other valve model (He or Kano) agrees on S when it fits about as well, and the estimated valve
+behaves as in a stick-slip cycle (stuck most of the time, about one slip per half-cycle, S most
+of the OP travel per half-cycle).
 Otherwise S and J are None and ``reasons`` says why.
 """
 
@@ -87,6 +88,9 @@ class QuantificationParams:
     """Points per axis of the local refinement grid."""
     max_delay_fraction: float = 0.25
     """Largest delay searched, as a fraction of the oscillation period (or 30 samples)."""
+    min_cycles: float = 10.0
+    """Oscillation periods the window must hold (methods §6.1: a segment of 5–10 cycles; the
+    upper end, as a few slips do not fix S) (rule 1)."""
     min_fit: float = 60.0
     """Simulation FIT (%) needed for a reported estimate (methods §6.1 rule 2)."""
     max_score_ratio: float = 0.7
@@ -590,6 +594,12 @@ def quantify_stiction(
     score_lin = float(_scores(vref, prob, 2)[0][0])
     ratio = main.best / score_lin if math.isfinite(score_lin) and score_lin > 0 else 0.0
     reasons: list[str] = []
+    cycles = u.size / period_samples
+    if cycles < p.min_cycles:
+        reasons.append(
+            f"only {cycles:.1f} oscillation periods in the window: at least {p.min_cycles:g} "
+            "are needed (a longer window)"
+        )
     if not math.isfinite(main.best):
         reasons.append("no candidate valve moved enough to identify a model")
     if main.fit < p.min_fit:

@@ -167,3 +167,13 @@ def test_he_valve_with_J_equal_to_S_is_found_by_the_phase_polish() -> None:
     assert q.model == "he"
     assert q.S is not None and q.J is not None
     assert abs(q.S - 10.0) <= 0.5 and abs(q.J - 10.0) <= 0.5
+
+
+def test_window_of_few_periods_gets_no_S() -> None:
+    # methods §6.1: a segment of 5–10 cycles; eight periods of a sticky loop are too few
+    op, pv, _, period = _loop(valve="kano", S=3.0, J=1.0)
+    assert period is not None
+    keep = int(8 * period)
+    q = quantify_stiction(op[-keep:], pv[-keep:], 1.0, period)
+    assert not q.reliable and q.S is None
+    assert any("oscillation periods in the window" in reason for reason in q.reasons), q.reasons
