@@ -530,9 +530,9 @@ def _search(
     )
     ph_step = 1.0
     if phases > 1:
-        # A He valve's slips stay where its start put them (each slip lands J from the last),
-        # so a He fit is sharp in the start phase (about a tenth of J wide in the benchmark
-        # loops) and in S: the coarse phases, J/he_phases apart, often miss it.
+        # A He valve's slips stay where its start put them (each slip lands where the last one
+        # put it), so a He fit is sharp in the start phase (about a tenth of J wide in the
+        # benchmark loops) and in S: the coarse phases, J/he_phases apart, often miss it.
         s_p, j_p, ph_p = _phase_polish_grid(s_c, j_c, score, step, p)
         if s_p.size:
             best = min(best, _pick(prob, model, s_p, j_p, ph_p, order, near), key=_score_of)

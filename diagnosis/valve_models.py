@@ -186,7 +186,8 @@ def he_grid(
     clip: bool = False,
     x0: ArrayLike | None = None,
 ) -> FloatArray:
-    """He et al. (2007) model for every pair (f_s[i], f_d[i]) (% travel).
+    """He et al. (2007) model for every pair (f_s[i], f_d[i]) (% travel; friction bands,
+    f_d >= 0: a slipping valve lands f_d behind the input).
 
     ``x0`` is the valve position before the first sample, per pair (default: the first input).
     With f_s > f_d the model never forgets it: on a ramp the valve slips in steps of
@@ -195,6 +196,8 @@ def he_grid(
     """
     x = _prep(u, clip)
     a, b = _pairs(fs, fd)
+    if np.any(b < 0):
+        raise ValueError("f_d must be >= 0 (a friction band in % of travel, f_d <= f_s)")
     start = np.full(a.size, x[0]) if x0 is None else np.asarray(x0, dtype=np.float64)
     y = np.array(np.broadcast_to(start, a.shape), dtype=np.float64)
     if a.size <= SCALAR_PAIRS:
@@ -224,8 +227,7 @@ def he(
     u: ArrayLike, fs: float, fd: float, clip: bool = False, x0: float | None = None
 ) -> FloatArray:
     """He et al. (2007) model for one (f_s, f_d) pair; ``x0`` as in :func:`he_grid`."""
-    x = _prep(u, clip)
-    return np.array(_he_one(x.tolist(), float(fs), float(fd), float(x[0] if x0 is None else x0)))
+    return np.asarray(he_grid(u, [fs], [fd], clip, None if x0 is None else [x0])[0])
 
 
 def stenman(u: ArrayLike, d: float, clip: bool = False) -> FloatArray:

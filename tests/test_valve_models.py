@@ -91,3 +91,8 @@ def test_stenman_stick_band() -> None:
     u = np.array([50.0, 50.5, 50.9, 51.2, 51.0, 49.9, 49.7])
     assert stenman(u, 1.0).tolist() == [50.0, 50.0, 50.0, 51.2, 51.2, 49.9, 49.9]
     assert stenman_grid(u, [0.0, 1.0]).shape == (2, 7)
+
+
+def test_he_rejects_a_negative_kinetic_band() -> None:
+    with pytest.raises(ValueError, match="f_d must be >= 0"):
+        he_grid(np.linspace(0.0, 10.0, 50), [2.0] * 8, [-0.5] * 8)
