@@ -9,7 +9,7 @@ import pytest
 from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.ellipse import apparent_stiction, fit_ellipse
 from plantcheck.diagnosis.oscillation import detect_oscillation
-from plantcheck.diagnosis.quantification import quantify_stiction
+from plantcheck.diagnosis.quantification import QuantificationResult, quantify_stiction
 from plantcheck.diagnosis.stiction_trend import WEEK_S, TrendParams, stiction_trend
 from plantcheck.simulator.cases import process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
@@ -117,26 +117,34 @@ def test_trend_projects_limit_crossing() -> None:
     assert none.n_used == 0 and none.current_S is None
 
 
-def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
-    # a temperature loop (τ = 20 s, θ = 5 s) with a Kano valve S = J = 5: a smaller S with a
-    # longer delay fits about as well as the true one, so S is not identifiable (rule 4c)
-    su = process_setup("temperature")
+def _case_loop(
+    process: str, valve: str, S: float, noise: float, warmup: int, seed: int
+) -> QuantificationResult:
+    """A loop of the quantification benchmark's case families (J = S, a random-walk load of
+    1 % of S), quantified on its 3,600 samples."""
+    su = process_setup(process)
     cfg = LoopConfig(
         process=su.process,
         controller=su.pi,
-        valve="kano",
-        S=5.0,
-        J=5.0,
-        disturbances=(Disturbance(random_walk_std=0.05),),
-        noise_std=0.05,
+        valve=valve,  # type: ignore[arg-type]
+        S=S,
+        J=S,
+        disturbances=(Disturbance(random_walk_std=0.01 * S),),
+        noise_std=noise,
         sample_time_s=su.ts,
         n_samples=3600,
-        warmup_samples=486,
-        seed=143457352,
+        warmup_samples=warmup,
+        seed=seed,
     )
     r = simulate_loop(cfg)
     osc = detect_oscillation(r.sp - r.pv, su.ts)
-    q = quantify_stiction(r.op, r.pv, su.ts, osc.period_s)
+    return quantify_stiction(r.op, r.pv, su.ts, osc.period_s)
+
+
+def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
+    # a temperature loop (τ = 20 s, θ = 5 s) with a Kano valve S = J = 5: a smaller S with a
+    # longer delay fits about as well as the true one, so S is not identifiable (rule 4c)
+    q = _case_loop("temperature", "kano", 5.0, noise=0.05, warmup=486, seed=143457352)
     assert q.S_best < 4.25  # the best fit (3.9 %) is more than 15 % below the true S
     assert not q.reliable and q.S is None
     assert any("fits within" in reason for reason in q.reasons), q.reasons
@@ -146,23 +154,7 @@ def test_he_valve_with_J_equal_to_S_is_found_by_the_phase_polish() -> None:
     # a flow loop (Ts = 0.2 s) with a He valve S = J = 10: each slip lands where the last one
     # put it, so only start phases within about a tenth of J reproduce the valve; the coarse
     # phases (J/3 apart) missed them and the Kano structure won with S = 14.0 % (fit 89 %)
-    su = process_setup("flow")
-    cfg = LoopConfig(
-        process=su.process,
-        controller=su.pi,
-        valve="he",
-        S=10.0,
-        J=10.0,
-        disturbances=(Disturbance(random_walk_std=0.1),),
-        noise_std=0.1,
-        sample_time_s=su.ts,
-        n_samples=3600,
-        warmup_samples=520,
-        seed=120694745,
-    )
-    r = simulate_loop(cfg)
-    osc = detect_oscillation(r.sp - r.pv, su.ts)
-    q = quantify_stiction(r.op, r.pv, su.ts, osc.period_s)
+    q = _case_loop("flow", "he", 10.0, noise=0.1, warmup=520, seed=120694745)
     assert q.reliable, q.reasons
     assert q.model == "he"
     assert q.S is not None and q.J is not None
