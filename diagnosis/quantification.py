@@ -571,8 +571,15 @@ def quantify_stiction(
     """
     p = params or QuantificationParams()
     u = np.asarray(op, dtype=np.float64)
-    u = u - u.mean()
     y = np.asarray(pv, dtype=np.float64)
+    if u.ndim != 1 or u.shape != y.shape:
+        raise ValueError(f"op and pv must be 1-D and of equal length (got {u.shape}, {y.shape})")
+    if not (np.isfinite(u).all() and np.isfinite(y).all()):
+        raise ValueError("op and pv must be finite: fill or cut the gaps (NaN) first")
+    if u.size < 2 or np.ptp(u) == 0.0:
+        reason = "OP does not move: no valve travel to identify"
+        return QuantificationResult(None, None, False, [reason], 0.0, 0.0, -math.inf, 0.0, 0)
+    u = u - u.mean()
     y = y - y.mean()
     period_samples = period_s / ts if period_s else y.size / 10.0
     max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 60))

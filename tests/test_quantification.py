@@ -169,3 +169,14 @@ def test_window_of_few_periods_gets_no_S() -> None:
     q = quantify_stiction(op[-keep:], pv[-keep:], 1.0, period)
     assert not q.reliable and q.S is None
     assert any("oscillation periods in the window" in reason for reason in q.reasons), q.reasons
+
+
+def test_bad_input_gets_a_clear_error_or_reason() -> None:
+    t = np.arange(600.0)
+    op, pv = 50.0 + 3.0 * np.sign(np.sin(t / 5.0)), np.sin(t / 5.0)
+    with pytest.raises(ValueError, match="equal length"):
+        quantify_stiction(op, pv[:-1], 1.0, 31.4)
+    with pytest.raises(ValueError, match="finite"):
+        quantify_stiction(np.r_[op[:-1], np.nan], pv, 1.0, 31.4)
+    q = quantify_stiction(np.full(600, 50.0), pv, 1.0, 31.4)
+    assert not q.reliable and q.S is None and "OP does not move" in q.reasons[0]
