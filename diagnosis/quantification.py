@@ -568,6 +568,12 @@ def quantify_stiction(
         Sample time, s.
     period_s:
         Oscillation period, s: sets the prefilter band and bounds the delay search.
+
+    Raises
+    ------
+    ValueError
+        ``op`` and ``pv`` of different shapes, or with NaN/inf (a flat OP is not an error: the
+        estimate is null with the reason).
     """
     p = params or QuantificationParams()
     u = np.asarray(op, dtype=np.float64)
