@@ -528,7 +528,7 @@ def _search(
     best = _Pick(
         float(score[i]), float(s_c[i]), float(j_c[i]), float(fit[i]), int(delay[i]), float(ph_c[i])
     )
-    ph_step = 1.0
+    ph_f = np.array([0.5])
     if phases > 1:
         # A He valve's slips stay where its start put them (each slip lands where the last one
         # put it), so a He fit is sharp in the start phase (about a tenth of J wide in the
@@ -536,12 +536,11 @@ def _search(
         s_p, j_p, ph_p = _phase_polish_grid(s_c, j_c, score, step, p)
         if s_p.size:
             best = min(best, _pick(prob, model, s_p, j_p, ph_p, order, near), key=_score_of)
-        ph_step = 1.0 / p.he_polish_phases
+        ph_f = best.phase + np.array([-0.5, 0.0, 0.5]) / p.he_polish_phases
     s_f = np.geomspace(best.S / step, best.S * step, p.refine)
     r_best = best.J / best.S if best.S > 0 else 0.0
     dr = p.max_ratio / (p.n_ratio - 1)
     r_f = np.linspace(max(0.0, r_best - dr), min(p.max_ratio, r_best + dr), p.refine)
-    ph_f = best.phase + np.array([-0.5, 0.0, 0.5]) * ph_step if phases > 1 else np.array([0.5])
     sg, rg, pg = np.meshgrid(s_f, r_f, ph_f, indexing="ij")
     fine = _pick(prob, model, sg.ravel(), (sg * rg).ravel(), pg.ravel(), order, near)
     best = min(best, fine, key=_score_of)
@@ -583,8 +582,17 @@ def quantify_stiction(
     if not (np.isfinite(u).all() and np.isfinite(y).all()):
         raise ValueError("op and pv must be finite: fill or cut the gaps (NaN) first")
     if u.size < 2 or np.ptp(u) == 0.0:
-        reason = "OP does not move: no valve travel to identify"
-        return QuantificationResult(None, None, False, [reason], 0.0, 0.0, -math.inf, 0.0, 0)
+        return QuantificationResult(
+            S=None,
+            J=None,
+            reliable=False,
+            reasons=["OP does not move: no valve travel to identify"],
+            S_best=0.0,
+            J_best=0.0,
+            fit=-math.inf,
+            score_ratio=0.0,
+            delay_samples=0,
+        )
     u = u - u.mean()
     y = y - y.mean()
     period_samples = period_s / ts if period_s else y.size / 10.0
