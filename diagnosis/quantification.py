@@ -327,6 +327,8 @@ class _Problem:
     prefilter: Prefilter
     min_moves: int
     max_delay: int
+    kano_phase: float
+    """Where the first OP sample sits in the Kano valve's start band (0: at its top)."""
 
 
 Model = Literal["kano", "he"]
@@ -338,11 +340,13 @@ def _valve_positions(
     """Valve position of the model for every (S, J) pair, one row each. The He model
     (He et al. 2007) is parameterised by (S, J): f_s = (S + J)/2, f_d = (S − J)/2, and starts
     at u[0] + (phase − ½)·J: on a ramp it slips every J from where it started, so phases 0
-    and 1 give the same slips after the first one (the Kano model ignores ``phase``)."""
-    if model == "kano":
-        return kano_grid(u, S, J)
+    and 1 give the same slips after the first one. The Kano model (Kano et al. 2004) starts
+    stuck, free outside the band u[0] + [(phase − 1), phase]·(S + J) (see kano_grid)."""
     s_arr = np.asarray(S, dtype=np.float64)
     j_arr = np.asarray(J, dtype=np.float64)
+    if model == "kano":
+        ph = np.asarray(phase, dtype=np.float64)
+        return kano_grid(u, s_arr, j_arr, stuck=u[0] - s_arr + ph * (s_arr + j_arr))
     x0 = u[0] + (np.asarray(phase, dtype=np.float64) - 0.5) * j_arr
     return he_grid(u, (s_arr + j_arr) / 2.0, (s_arr - j_arr) / 2.0, x0=x0)
 
@@ -500,6 +504,8 @@ def _search(
     the best few S values from many more (the phase polish)."""
     phases = p.he_phases if model == "he" else 1
     s_c, j_c, ph_c, thin = _grid(s_lo, s_hi, p, phases)
+    if model == "kano":
+        ph_c[:] = prob.kano_phase
     step = _s_step(s_lo, s_hi, p)
     # the delay scan's subset first: it and the other rows are then views of one array
     rows = np.concatenate([np.flatnonzero(thin), np.flatnonzero(~thin)])
@@ -528,7 +534,7 @@ def _search(
     best = _Pick(
         float(score[i]), float(s_c[i]), float(j_c[i]), float(fit[i]), int(delay[i]), float(ph_c[i])
     )
-    ph_f = np.array([0.5])
+    ph_f = np.array([best.phase])
     if phases > 1:
         # A He valve's slips stay where its start put them (each slip lands where the last one
         # put it), so a He fit is sharp in the start phase (about a tenth of J wide in the
@@ -599,7 +605,11 @@ def quantify_stiction(
     max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 60))
     pf = band_prefilter(p.highpass_fraction / period_samples, p.lowpass_multiple / period_samples)
     b, a = pf
-    prob = _Problem(u, lfilter(b, a, y - y[0]), pf, p.min_moves, max_delay)
+    # The Kano valve starts stuck with its break band at the first sample's edge facing the
+    # bulk of the OP: it breaks free the first time the OP passes u0 that way, and so never
+    # locks (from BDSIM's centred band a valve with S + J above the OP range never moves).
+    kano_phase = 0.0 if u[0] <= float(np.median(u)) else 1.0
+    prob = _Problem(u, lfilter(b, a, y - y[0]), pf, p.min_moves, max_delay, kano_phase)
     s_max = p.s_max_fraction * float(np.ptp(u))
     excursion = op_excursion(u, period_samples)
     s_hi = min(s_max, p.grid_high * excursion)
@@ -611,7 +621,9 @@ def quantify_stiction(
     # rule 3 reference: a deadband of 2 % of the grid range. With v = OP exactly the closed-
     # loop regressors are collinear (OP is a linear function of past PV) and the fit is
     # meaningless; a tiny deadband removes the collinearity without modelling stiction.
-    vref = _valves(prob, "kano", np.array([p.reference_fraction * s_max]), np.array([0.0]))
+    vref = _valves(
+        prob, "kano", np.array([p.reference_fraction * s_max]), np.array([0.0]), kano_phase
+    )
     score_lin = float(_scores(vref, prob, 2)[0][0])
     ratio = main.best / score_lin if math.isfinite(score_lin) and score_lin > 0 else 0.0
     reasons: list[str] = []
@@ -657,6 +669,8 @@ def quantify_stiction(
         # a He valve's start phase belongs to (S, J): every phase is tried along the line
         s_line = np.repeat(main.s_best * np.array(p.tradeoff_factors), n_ph)
         ph_line = np.tile(np.arange(n_ph) / n_ph, len(p.tradeoff_factors))
+        if main.model == "kano":
+            ph_line[:] = prob.kano_phase
         line_score, _, _ = _scores(
             _valves(prob, main.model, s_line, ratio_j * s_line, ph_line),
             prob,

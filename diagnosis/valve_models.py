@@ -51,10 +51,13 @@ SCALAR_PAIRS = 6
 """Up to this many pairs a plain Python loop per pair beats the per-step numpy overhead."""
 
 
-def _kano_one(x: list[float], s: float, j: float) -> list[float]:
+def _kano_one(x: list[float], s: float, j: float, stuck: float | None) -> list[float]:
     """Kano model for one pair, sample by sample (the BDSIM logic of methods §5.3)."""
     half = (s - j) / 2.0
-    moving, d, us, y = True, -1.0, x[0] + half, x[0]
+    if stuck is None:
+        moving, d, us, y = True, -1.0, x[0] + half, x[0]
+    else:
+        moving, d, us, y = False, -1.0, stuck, x[0]
     out = [y]
     du_old = 0.0
     for k in range(1, len(x)):
@@ -75,23 +78,39 @@ def _kano_one(x: list[float], s: float, j: float) -> list[float]:
     return out
 
 
-def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
+def kano_grid(
+    u: ArrayLike,
+    S: ArrayLike,
+    J: ArrayLike,
+    clip: bool = False,
+    stuck: ArrayLike | None = None,
+) -> FloatArray:
     """Kano et al. (2004) model for every pair (S[i], J[i]); returns (n_pairs, len(u)).
 
-    Initial state as in BDSIM: moving, direction −1, stuck input u0 + (S − J)/2.
+    Initial state as in BDSIM (``stuck=None``): moving, direction −1, so the valve sticks at
+    the first input u0 and breaks free when the input leaves [u0 − J, u0 + S]. ``stuck`` (per
+    pair, % travel) starts it stuck instead, last moved downwards, at that input: it breaks
+    free when the input leaves [stuck − J, stuck + S]. In a stick-slip cycle that band sits
+    wherever the last reversal put it, and from a band the input never leaves the model never
+    moves; ``stuck = u0 − S + φ·(S + J)``, φ in [0, 1], spans every start the first sample
+    allows (φ = S/(S + J) is BDSIM's).
     """
     x = _prep(u, clip)
     s, j = _pairs(S, J)
     half = (s - j) / 2.0
     n_p = s.size
+    st = None if stuck is None else np.array(np.broadcast_to(stuck, s.shape), dtype=np.float64)
     if n_p <= SCALAR_PAIRS:
         xs = x.tolist()
-        return np.array([_kano_one(xs, float(a), float(b)) for a, b in zip(s, j, strict=True)])
+        starts = [None] * n_p if st is None else st.tolist()
+        return np.array(
+            [_kano_one(xs, float(a), float(b), c) for a, b, c in zip(s, j, starts, strict=True)]
+        )
     # time along the first axis, so each step writes one contiguous row; returned transposed
     out = np.empty((x.size, n_p))
-    moving = np.ones(n_p, dtype=bool)
+    moving = np.ones(n_p, dtype=bool) if st is None else np.zeros(n_p, dtype=bool)
     d = -np.ones(n_p)
-    us = x[0] + half
+    us = x[0] + half if st is None else st
     y = np.full(n_p, x[0])
     out[0] = y
     du_old = 0.0
@@ -124,9 +143,12 @@ def kano_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> F
     return out.T
 
 
-def kano(u: ArrayLike, S: float, J: float, clip: bool = False) -> FloatArray:
-    """Kano et al. (2004) model for one (S, J) pair (% travel)."""
-    return np.array(_kano_one(_prep(u, clip).tolist(), float(S), float(J)))
+def kano(
+    u: ArrayLike, S: float, J: float, clip: bool = False, stuck: float | None = None
+) -> FloatArray:
+    """Kano et al. (2004) model for one (S, J) pair (% travel); ``stuck`` as in
+    :func:`kano_grid`."""
+    return np.array(_kano_one(_prep(u, clip).tolist(), float(S), float(J), stuck))
 
 
 def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:

@@ -161,6 +161,18 @@ def test_he_valve_with_J_equal_to_S_is_found_by_the_phase_polish() -> None:
     assert abs(q.S - 10.0) <= 0.5 and abs(q.J - 10.0) <= 0.5
 
 
+def test_kano_valve_from_a_start_band_it_leaves() -> None:
+    # a flow loop with a Kano valve S = J = 10 whose OP swings about ±7 % around the first
+    # sample: started stuck at that sample (BDSIM), the true valve needs 10 % either way and
+    # never moves, so a J the OP can reach won (J* = 7.2); started at the edge of its band
+    # it breaks free at once and sticks at the first reversal, as the real valve did
+    q = _case_loop("flow", "kano", 10.0, noise=0.3, warmup=520, seed=918374082)
+    assert q.reliable, q.reasons
+    assert q.model == "kano"
+    assert q.S is not None and q.J is not None
+    assert abs(q.S - 10.0) <= 0.5 and abs(q.J - 10.0) <= 0.5
+
+
 def test_window_of_few_periods_gets_no_S() -> None:
     # methods §6.1: a segment of 5–10 cycles; eight periods of a sticky loop are too few
     op, pv, _, period = _loop(valve="kano", S=3.0, J=1.0)

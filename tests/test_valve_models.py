@@ -50,6 +50,28 @@ def test_choudhury_equals_kano_and_grid_equals_single() -> None:
         assert np.allclose(grid_c[i], grid_k[i])  # methods §5.2: identical outputs
 
 
+def test_kano_start_band() -> None:
+    # S = J = 5 and an input swinging ±4 around its first sample: BDSIM's start (stuck at
+    # u0, free outside [u0 − J, u0 + S]) never moves; stuck at u0 − S (free outside
+    # [u0 − S − J, u0]) the valve breaks free as the input first rises past u0, then sticks
+    # at each reversal and slips by J + overshoot once the input comes back by S
+    u = 50 + 4 * np.sin(np.arange(400) * 2 * np.pi / 100)
+    assert np.all(kano(u, 5.0, 5.0) == 50.0)
+    v = kano(u, 5.0, 5.0, stuck=45.0)
+    assert v[1] == pytest.approx(u[1])  # moving up with the input, (S − J)/2 = 0 behind
+    assert v[25] == pytest.approx(54.0)  # stuck at the first peak
+    slips = np.flatnonzero(np.diff(v[30:]) != 0)
+    assert u[30 + slips[0] + 1] < 49.0 + 1e-9  # came back by more than S = 5 from 54
+    # the grid with start bands equals the single pair, row by row
+    S = np.array([0.5, 2.0, 4.0, 4.0, 3.0, 1.0, 6.0, 2.5])
+    J = np.array([0.0, 1.0, 2.0, 4.0, 3.6, 0.2, 1.0, 2.5])
+    stuck = U[0] - S + np.linspace(0.0, 1.0, S.size) * (S + J)
+    grid = kano_grid(U, S, J, stuck=stuck)
+    for i in range(S.size):
+        assert np.array_equal(grid[i], kano(U, S[i], J[i], stuck=stuck[i]))
+    assert np.array_equal(kano_grid(U, S, J, stuck=np.full(S.size, U[0])), kano_grid(U, S, J))
+
+
 @pytest.mark.parametrize(("S", "J"), [(4.0, 2.0), (3.0, 0.0), (4.0, 4.0), (2.0, 3.0)])
 def test_grid_models_match_step_wise_simulator(S: float, J: float) -> None:
     kv = KanoValve(S, J)
