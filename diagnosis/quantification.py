@@ -505,7 +505,7 @@ def _search(
     phases = p.he_phases if model == "he" else 1
     s_c, j_c, ph_c, thin = _grid(s_lo, s_hi, p, phases)
     if model == "kano":
-        ph_c[:] = prob.kano_phase
+        ph_c[:] = prob.kano_phase  # every Kano row starts from the window's start band
     step = _s_step(s_lo, s_hi, p)
     # the delay scan's subset first: it and the other rows are then views of one array
     rows = np.concatenate([np.flatnonzero(thin), np.flatnonzero(~thin)])

@@ -93,7 +93,7 @@ def kano_grid(
     free when the input leaves [stuck − J, stuck + S]. In a stick-slip cycle that band sits
     wherever the last reversal put it, and from a band the input never leaves the model never
     moves; ``stuck = u0 − S + φ·(S + J)``, φ in [0, 1], spans every start the first sample
-    allows (φ = S/(S + J) is BDSIM's).
+    allows (φ = S/(S + J) is BDSIM's). The position reads u0 until the valve first moves.
     """
     x = _prep(u, clip)
     s, j = _pairs(S, J)

@@ -150,25 +150,27 @@ def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
     assert any("fits within" in reason for reason in q.reasons), q.reasons
 
 
-def test_he_valve_with_J_equal_to_S_is_found_by_the_phase_polish() -> None:
-    # a flow loop (Ts = 0.2 s) with a He valve S = J = 10: each slip lands where the last one
-    # put it, so only start phases within about a tenth of J reproduce the valve; the coarse
-    # phases (J/3 apart) missed them and the Kano structure won with S = 14.0 % (fit 89 %)
-    q = _case_loop("flow", "he", 10.0, noise=0.1, warmup=520, seed=120694745)
+@pytest.mark.parametrize(
+    ("valve", "noise", "seed"),
+    [
+        # He: each slip lands where the last one put it, so only start phases within about a
+        # tenth of J reproduce the valve; the coarse phases (J/3 apart) missed them and the
+        # Kano structure won with S = 14.0 % (fit 89 %) until the phase polish
+        pytest.param("he", 0.1, 120694745, id="he-phase-polish"),
+        # Kano, OP swinging about ±7 % around its first sample: started stuck at that sample
+        # (BDSIM) the true valve needs 10 % either way and never moves, so a J the OP can
+        # reach won (J* = 7.2); started at the edge of its band it breaks free at once and
+        # sticks at the first reversal, as the real valve did
+        pytest.param("kano", 0.3, 918374082, id="kano-start-band"),
+    ],
+)
+def test_valve_with_J_equal_to_S_is_found_from_its_start(
+    valve: str, noise: float, seed: int
+) -> None:
+    # flow loops (Ts = 0.2 s) with S = J = 10 % of travel
+    q = _case_loop("flow", valve, 10.0, noise=noise, warmup=520, seed=seed)
     assert q.reliable, q.reasons
-    assert q.model == "he"
-    assert q.S is not None and q.J is not None
-    assert abs(q.S - 10.0) <= 0.5 and abs(q.J - 10.0) <= 0.5
-
-
-def test_kano_valve_from_a_start_band_it_leaves() -> None:
-    # a flow loop with a Kano valve S = J = 10 whose OP swings about ±7 % around the first
-    # sample: started stuck at that sample (BDSIM), the true valve needs 10 % either way and
-    # never moves, so a J the OP can reach won (J* = 7.2); started at the edge of its band
-    # it breaks free at once and sticks at the first reversal, as the real valve did
-    q = _case_loop("flow", "kano", 10.0, noise=0.3, warmup=520, seed=918374082)
-    assert q.reliable, q.reasons
-    assert q.model == "kano"
+    assert q.model == valve
     assert q.S is not None and q.J is not None
     assert abs(q.S - 10.0) <= 0.5 and abs(q.J - 10.0) <= 0.5
 
