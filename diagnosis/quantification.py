@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import butter, lfilter
+from scipy.signal import butter, lfilter, sosfilt
 
 try:
     # lfilter's own kernel: lfilter's array-API dispatch costs ~20 µs a call, 40 % of one row's
@@ -127,9 +127,14 @@ class QuantificationParams:
     """Deadband of the near-linear reference valve, as a fraction of S_max (rule 3)."""
     highpass_fraction: float = 0.2
     """Prefilter low edge as a fraction of the oscillation frequency (slow loads removed)."""
-    lowpass_multiple: float = 10.0
-    """Prefilter high edge in multiples of the oscillation frequency (stick-slip harmonics kept,
-    measurement noise removed)."""
+    highpass_order: int = 4
+    """Order of the prefilter's Butterworth high-pass: steep, so that a slow external
+    oscillation (a twentieth to a fifth of the loop's frequency) does not bias the ARX model
+    (order 2: on a pressure loop with such an oscillation the true valve position fitted 82 %
+    and a 25 % smaller S fitted better; order 4: 92 %, and the true S wins) [R]."""
+    lowpass_multiple: float = 5.0
+    """Prefilter high edge in multiples of the oscillation frequency (the stick-slip harmonics
+    that carry S kept, measurement noise removed) [R]."""
 
 
 @dataclass(frozen=True)
@@ -303,19 +308,21 @@ def _fit_arx(
     return score, fit, delay
 
 
-Prefilter = tuple[FloatArray, FloatArray]
+Prefilter = FloatArray
+"""Second-order sections (scipy.signal.sosfilt)."""
 
 
-def band_prefilter(f_lo: float, f_hi: float) -> Prefilter:
-    """2nd-order Butterworth band-pass between ``f_lo`` and ``f_hi`` cycles per sample
-    (high-pass only when ``f_hi`` reaches the Nyquist frequency)."""
+def band_prefilter(f_lo: float, f_hi: float, highpass_order: int = 4) -> Prefilter:
+    """Butterworth high-pass of ``highpass_order`` at ``f_lo`` and 2nd-order low-pass at
+    ``f_hi`` (cycles per sample; no low-pass when ``f_hi`` reaches the Nyquist frequency), as
+    second-order sections: a 4th-order edge a fifth of the oscillation frequency down is
+    numerically fragile as one transfer function."""
     lo = min(max(2.0 * f_lo, 1e-4), 0.9)
     hi = 2.0 * f_hi
-    if hi >= 0.95 or hi <= lo * 1.5:
-        b, a = butter(2, lo, btype="highpass")
-    else:
-        b, a = butter(2, [lo, hi], btype="bandpass")
-    return np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    sos = butter(highpass_order, lo, btype="highpass", output="sos")
+    if lo * 1.5 < hi < 0.95:
+        sos = np.vstack([sos, butter(2, hi, output="sos")])
+    return np.asarray(sos, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -358,9 +365,8 @@ def _valves(
     v = _valve_positions(prob.u, model, S, J, phase)
     vt = v.T  # time along the first axis: the grids' own memory layout, one pass
     moves = np.count_nonzero(vt[1:] != vt[:-1], axis=0)
-    b, a = prob.prefilter
     # the same linear filter on both sides keeps PV = G·v and removes slow load drift and noise
-    vf = lfilter(b, a, v - v[:, :1], axis=1)
+    vf = sosfilt(prob.prefilter, v - v[:, :1], axis=1)
     vf[moves < prob.min_moves] = np.nan
     return np.asarray(vf, dtype=np.float64)
 
@@ -603,13 +609,16 @@ def quantify_stiction(
     y = y - y.mean()
     period_samples = period_s / ts if period_s else y.size / 10.0
     max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 60))
-    pf = band_prefilter(p.highpass_fraction / period_samples, p.lowpass_multiple / period_samples)
-    b, a = pf
+    pf = band_prefilter(
+        p.highpass_fraction / period_samples,
+        p.lowpass_multiple / period_samples,
+        p.highpass_order,
+    )
     # The Kano valve starts stuck with its break band at the first sample's edge facing the
     # bulk of the OP: it breaks free the first time the OP passes u0 that way, and so never
     # locks (from BDSIM's centred band a valve with S + J above the OP range never moves).
     kano_phase = 0.0 if u[0] <= float(np.median(u)) else 1.0
-    prob = _Problem(u, lfilter(b, a, y - y[0]), pf, p.min_moves, max_delay, kano_phase)
+    prob = _Problem(u, sosfilt(pf, y - y[0]), pf, p.min_moves, max_delay, kano_phase)
     s_max = p.s_max_fraction * float(np.ptp(u))
     excursion = op_excursion(u, period_samples)
     s_hi = min(s_max, p.grid_high * excursion)
