@@ -15,8 +15,13 @@ refined on a finer local grid. The same search runs with a He valve (He et al. 2
 never forgets where it started (on a ramp it slips every J from there, in a cycle each slip
 lands where the last one put it), so each He pair is tried from a few starting positions over
 one slip, and the best few S values again from twenty: a He fit is sharp in the start (about a
-tenth of J wide) and in S (under 1 %). Integrating (level) loops use the same structure:
-the band-pass prefilter removes the integrator's drift, and fitting PV increments instead only
+tenth of J wide) and in S (under 1 %). A Kano valve starts stuck with the first OP sample at
+the edge of its break band facing the bulk of the OP, so it cannot lock (a band centred on the
+first sample, BDSIM's start, may hold a large valve still for the whole window). OP and PV are
+prefiltered alike: a steep (4th-order) high-pass a fifth of the oscillation frequency down
+removes slow loads and slow external oscillations, which would bias the ARX model, and a
+low-pass at five times it removes noise. Integrating (level) loops use the same structure:
+the high-pass removes the integrator's drift, and fitting PV increments instead only
 amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
