@@ -54,10 +54,7 @@ SCALAR_PAIRS = 6
 def _kano_one(x: list[float], s: float, j: float, stuck: float | None) -> list[float]:
     """Kano model for one pair, sample by sample (the BDSIM logic of methods §5.3)."""
     half = (s - j) / 2.0
-    if stuck is None:
-        moving, d, us, y = True, -1.0, x[0] + half, x[0]
-    else:
-        moving, d, us, y = False, -1.0, stuck, x[0]
+    moving, d, us, y = False, -1.0, x[0] if stuck is None else stuck, x[0]
     out = [y]
     du_old = 0.0
     for k in range(1, len(x)):
@@ -87,10 +84,10 @@ def kano_grid(
 ) -> FloatArray:
     """Kano et al. (2004) model for every pair (S[i], J[i]); returns (n_pairs, len(u)).
 
-    Initial state as in BDSIM (``stuck=None``): moving, direction −1, so the valve sticks at
-    the first input u0 and breaks free when the input leaves [u0 − J, u0 + S]. ``stuck`` (per
-    pair, % travel) starts it stuck instead, last moved downwards, at that input: it breaks
-    free when the input leaves [stuck − J, stuck + S]. In a stick-slip cycle that band sits
+    The valve starts stuck, last moved downwards (direction −1), at input ``stuck`` (per pair,
+    % travel; default the first input u0): it breaks free when the input leaves
+    [stuck − J, stuck + S]. The default is BDSIM's start (moving downwards, so it sticks at u0
+    on the first step). In a stick-slip cycle that band sits
     wherever the last reversal put it, and from a band the input never leaves the model never
     moves; ``stuck = u0 − S + φ·(S + J)``, φ in [0, 1], spans every start the first sample
     allows (φ = S/(S + J) is BDSIM's). The position reads u0 until the valve first moves.
@@ -99,18 +96,17 @@ def kano_grid(
     s, j = _pairs(S, J)
     half = (s - j) / 2.0
     n_p = s.size
-    st = None if stuck is None else np.array(np.broadcast_to(stuck, s.shape), dtype=np.float64)
+    start = x[0] if stuck is None else stuck
+    us = np.array(np.broadcast_to(start, s.shape), dtype=np.float64)
     if n_p <= SCALAR_PAIRS:
         xs = x.tolist()
-        starts = [None] * n_p if st is None else st.tolist()
         return np.array(
-            [_kano_one(xs, float(a), float(b), c) for a, b, c in zip(s, j, starts, strict=True)]
+            [_kano_one(xs, float(a), float(b), float(c)) for a, b, c in zip(s, j, us, strict=True)]
         )
     # time along the first axis, so each step writes one contiguous row; returned transposed
     out = np.empty((x.size, n_p))
-    moving = np.ones(n_p, dtype=bool) if st is None else np.zeros(n_p, dtype=bool)
+    moving = np.zeros(n_p, dtype=bool)
     d = -np.ones(n_p)
-    us = x[0] + half if st is None else st
     y = np.full(n_p, x[0])
     out[0] = y
     du_old = 0.0
