@@ -11,18 +11,20 @@ fitted by least squares (all pairs in one batched solve), the delay nk is the on
 smallest least-squares residual among the delays a scan of every delay on a subset of the grid
 found for its good pairs, and the pair is ranked by the *simulation* error of the
 model (one-step prediction error hardly depends on (S, J), methods §6.1). The best pair is
-refined on a finer local grid. The same search runs with a He valve (He et al. 2007); a He valve
-never forgets where it started (on a ramp it slips every J from there, in a cycle each slip
-lands where the last one put it), so each He pair is tried from a few starting positions over
-one slip, and the best few S values again from twenty: a He fit is sharp in the start (about a
-tenth of J wide) and in S (under 1 %). A Kano valve starts stuck with the first OP sample at
-the edge of its break band facing the bulk of the OP, so it cannot lock (a band centred on the
-first sample, BDSIM's start, may hold a large valve still for the whole window). OP and PV are
-prefiltered alike: a steep (4th-order) high-pass a fifth of the oscillation frequency down
-removes slow loads and slow external oscillations, which would bias the ARX model, and a
-low-pass at five times it removes noise. Integrating (level) loops use the same structure:
-the high-pass removes the integrator's drift, and fitting PV increments instead only
-amplified noise.
+refined on a finer local grid. The same search runs with a He valve (He et al. 2007); a He
+valve never forgets where it started (on a ramp it slips every J from there, in a cycle each
+slip lands where the last one put it), so each He pair is tried from a few starting positions
+over one slip, and the best few S values again from twenty: a He fit is sharp in the start
+(about a tenth of J wide) and in S (under 1 %). Last, every J/S at the best S is tried again, a
+He valve from twenty starts (the J polish): the refinement around the coarse J/S may keep a J
+that fits worse than another J from that J's own best start. A Kano valve starts stuck with the
+first OP sample at the edge of its break band facing the bulk of the OP, so it cannot lock (a
+band centred on the first sample, BDSIM's start, may hold a large valve still for the whole
+window). OP and PV are prefiltered alike: a steep (4th-order) high-pass a fifth of the
+oscillation frequency down removes slow loads and slow external oscillations, which would bias
+the ARX model, and a low-pass at five times it removes noise. Integrating (level) loops use the
+same structure: the high-pass removes the integrator's drift, and fitting PV increments instead
+only amplified noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
 window holds at least ten oscillation periods, the simulated fit is good enough, the stiction
@@ -91,6 +93,10 @@ class QuantificationParams:
     he_polish_phases: int = 20
     """... from this many starting positions over one slip, at S and half a grid step either
     side [R]."""
+    j_polish_ratios: int = 11
+    """J/S values tried at S* after the refinement (the J polish) ..."""
+    j_polish_phases: int = 20
+    """... a He valve from this many starting positions over one slip [R]."""
     max_ratio: float = 1.0
     """Largest J/S on the grid (1 = 'no offset' case; Kano allows overshoot J > S)."""
     s_max_fraction: float = 0.9
@@ -576,6 +582,24 @@ def _search(
     sg, rg, pg = np.meshgrid(s_f, r_f, ph_f, indexing="ij")
     fine = _pick(prob, model, sg.ravel(), (sg * rg).ravel(), pg.ravel(), order, near)
     best = min(best, fine, key=_score_of)
+    # J polish: every J/S at S*, a He valve from many starts, at the delay found. The grid's
+    # J/S and starts are coarse and a He fit is sharp in the start at each J, so the local
+    # refinement can keep a J that fits worse than another one from that J's own best start.
+    r_j = np.linspace(0.0, p.max_ratio, p.j_polish_ratios)
+    n_ph = p.j_polish_phases if phases > 1 else 1
+    ph_j = (
+        np.tile(np.arange(n_ph) / n_ph, r_j.size) if phases > 1 else np.full(r_j.size, best.phase)
+    )
+    j_pick = _pick(
+        prob,
+        model,
+        np.full(ph_j.size, best.S),
+        best.S * np.repeat(r_j, n_ph),
+        ph_j,
+        order,
+        [best.delay],
+    )
+    best = min(best, j_pick, key=_score_of)
     return _Search(
         model, s_c, j_c, score, best.S, best.J, best.score, best.fit, best.delay, best.phase
     )

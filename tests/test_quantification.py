@@ -193,6 +193,27 @@ def test_valve_with_J_equal_to_S_is_found_from_its_start(
     assert abs(q.S - 10.0) <= 0.5 and abs(q.J - 10.0) <= 0.5
 
 
+def test_he_valve_J_is_polished_at_S() -> None:
+    # flow loop, He valve S = J = 5 % of travel (it lands on the OP at every slip). The grid's
+    # J/S values are a quarter apart and each He pair is tried from three starts only: S came
+    # out right but J = 4.17 %, from the refinement around the coarse J/S = 0.75; J = S from
+    # its own best start fits better, and the J polish (every J/S at S*, twenty starts) finds it
+    q = _case_loop("flow", "he", 5.0, noise=0.3, warmup=520, seed=210080626)
+    assert q.reliable, q.reasons
+    assert q.model == "he" and q.S is not None and q.J is not None
+    assert abs(q.S - 5.0) <= 0.1 and abs(q.J - 5.0) <= 0.1
+    coarse = _case_loop(
+        "flow",
+        "he",
+        5.0,
+        noise=0.3,
+        warmup=520,
+        seed=210080626,
+        params=replace(QuantificationParams(), j_polish_ratios=1),
+    )
+    assert coarse.J is not None and coarse.J < 4.5
+
+
 def test_window_of_few_periods_gets_no_S() -> None:
     # methods §6.1: a segment of 5–10 cycles; eight periods of a sticky loop are too few
     op, pv, _, period = _loop(valve="kano", S=3.0, J=1.0)
