@@ -24,6 +24,7 @@ import numpy as np
 
 from plantcheck.diagnosis.oscillation import detect_oscillation
 from plantcheck.diagnosis.quantification import quantify_stiction
+from plantcheck.diagnosis.stiction_vote import is_integrating
 from plantcheck.simulator.cases import PROCESSES, process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
 
@@ -85,7 +86,7 @@ def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | Non
         osc = detect_oscillation(r.op, ts)
     if not osc.oscillating:
         return None, None, False, ["not oscillating"]
-    q = quantify_stiction(r.op, r.pv, ts, osc.period_s)
+    q = quantify_stiction(r.op, r.pv, ts, osc.period_s, integrating=is_integrating(loop_type))
     if VERBOSE:
         print(
             f"    {loop_type:11s} valve={cfg.valve} S={cfg.S:g} J={cfg.J:g} noise={cfg.noise_std} "

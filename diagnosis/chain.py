@@ -275,7 +275,8 @@ def _quantify_recent(
     if op.size > keep:
         op, pv = op[-keep:], pv[-keep:]
         diag.notes.append(f"S and J estimated on the last {keep} samples of the window")
-    return quantify_stiction(op, pv, ts, period_s, p.quantification)
+    integrating = is_integrating(diag.loop_type)
+    return quantify_stiction(op, pv, ts, period_s, p.quantification, integrating)
 
 
 def _quantify_into(

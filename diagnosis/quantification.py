@@ -32,7 +32,8 @@ model explains clearly more than a linear valve, the optimum is well posed (not 
 edge, a compact low-error region, no distant S and no other delay fitting nearly as well), the
 other valve model (He or Kano) agrees on S when it fits about as well, and the estimated valve
 behaves as in a stick-slip cycle (stuck most of the time, about one slip per half-cycle, S most
-of the OP travel per half-cycle).
+of the OP travel per half-cycle, and on a self-regulating loop a slip jump: a deadband alone does
+not sustain a limit cycle there).
 Otherwise S and J are None and ``reasons`` says why.
 """
 
@@ -130,6 +131,9 @@ class QuantificationParams:
     """S/S* values checked, every delay free, for the S–delay trade-off (rule 4b) [R]."""
     min_excursion_share: float = 0.4
     """S* must be at least this share of the OP travel per half-cycle (rule 8) [R]."""
+    min_slip_ratio: float = 0.1
+    """On a self-regulating loop J* must be at least this fraction of S*: a deadband without
+    slip does not sustain a limit cycle there (rule 9) [R]."""
     structure_tie: float = 1.25
     """The two structures count as equally good when their errors are within this factor."""
     delay_scan_ratio_step: int = 3
@@ -611,6 +615,7 @@ def quantify_stiction(
     ts: float,
     period_s: float | None = None,
     params: QuantificationParams | None = None,
+    integrating: bool | None = None,
 ) -> QuantificationResult:
     """Estimate S and J (% of valve travel) from OP and PV by Hammerstein identification.
 
@@ -623,6 +628,9 @@ def quantify_stiction(
         Sample time, s.
     period_s:
         Oscillation period, s: sets the prefilter band and bounds the delay search.
+    integrating:
+        Whether the process integrates (level loops); False enables rule 9 (a deadband alone
+        does not sustain a limit cycle in a self-regulating loop); None when unknown.
 
     Raises
     ------
@@ -774,6 +782,16 @@ def quantify_stiction(
         reasons.append(
             f"S* = {main.s_best:.2f} % is a small part of the OP travel per half-cycle "
             f"({excursion:.2f} %): the cycle is not explained by the valve"
+        )
+    # rule 9: a deadband alone (J = 0) does not sustain a limit cycle in a self-regulating loop
+    # under PI control: it takes a slip jump, or a second integrator in the process (McMillan,
+    # "Limit cycle periods", modelingandcontrol.com 2007). There a deadband fit means the cycle
+    # has another cause, or a stick-slip valve read with a too small S (a Kano valve with
+    # J = S/2 on slow loops fits as a deadband of 0.6 S).
+    if integrating is False and main.j_best < p.min_slip_ratio * main.s_best:
+        reasons.append(
+            f"J* = {main.j_best:.2f} % is a deadband without slip jump, which does not sustain a "
+            "limit cycle in a self-regulating loop: the cycle is not explained by the valve"
         )
     reliable = not reasons
     return QuantificationResult(

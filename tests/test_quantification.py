@@ -131,16 +131,18 @@ def _case_loop(
     warmup: int,
     seed: int,
     params: QuantificationParams | None = None,
+    J: float | None = None,
+    integrating: bool | None = None,
 ) -> QuantificationResult:
-    """A loop of the quantification benchmark's case families (J = S, a random-walk load of
-    1 % of S), quantified on its 3,600 samples."""
+    """A loop of the quantification benchmark's case families (J = S unless given, a random-walk
+    load of 1 % of S), quantified on its 3,600 samples."""
     su = process_setup(process)
     cfg = LoopConfig(
         process=su.process,
         controller=su.pi,
         valve=valve,  # type: ignore[arg-type]
         S=S,
-        J=S,
+        J=S if J is None else J,
         disturbances=(Disturbance(random_walk_std=0.01 * S),),
         noise_std=noise,
         sample_time_s=su.ts,
@@ -150,7 +152,22 @@ def _case_loop(
     )
     r = simulate_loop(cfg)
     osc = detect_oscillation(r.sp - r.pv, su.ts)
-    return quantify_stiction(r.op, r.pv, su.ts, osc.period_s, params)
+    return quantify_stiction(r.op, r.pv, su.ts, osc.period_s, params, integrating)
+
+
+def test_deadband_fit_on_a_self_regulating_loop_is_not_reported() -> None:
+    # pressure loop (τ = 8 s, θ = 2 s), Kano valve S = 5, J = 2.5: the best fit is a deadband
+    # of 3.06 % without slip jump (fit 89 %). A deadband alone does not sustain a limit cycle in
+    # a self-regulating loop, so the estimate is refused there (rule 9); a level loop's
+    # integrator could sustain it, and a loop of unknown type keeps the estimate
+    args = ("pressure", "kano", 5.0, 0.05, 480, 730511427)
+    unknown = _case_loop(*args, J=2.5)
+    assert unknown.reliable and unknown.J == 0.0 and unknown.S is not None
+    assert unknown.S < 3.5  # the deadband reading: 40 % below the true S
+    q = _case_loop(*args, J=2.5, integrating=False)
+    assert not q.reliable and q.S is None and q.J is None
+    assert any("deadband without slip" in reason for reason in q.reasons), q.reasons
+    assert _case_loop(*args, J=2.5, integrating=True).reliable
 
 
 def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
