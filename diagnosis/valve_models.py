@@ -84,13 +84,13 @@ def kano_grid(
 ) -> FloatArray:
     """Kano et al. (2004) model for every pair (S[i], J[i]); returns (n_pairs, len(u)).
 
-    The valve starts stuck, last moved downwards (direction −1), at input ``stuck`` (per pair,
-    % travel; default the first input u0): it breaks free when the input leaves
+    The valve starts stuck, last moved downwards (direction −1), at input ``stuck`` (per
+    pair, % travel; default the first input u0): it breaks free when the input leaves
     [stuck − J, stuck + S]. The default is BDSIM's start (moving downwards, so it sticks at u0
-    on the first step). In a stick-slip cycle that band sits
-    wherever the last reversal put it, and from a band the input never leaves the model never
-    moves; ``stuck = u0 − S + φ·(S + J)``, φ in [0, 1], spans every start the first sample
-    allows (φ = S/(S + J) is BDSIM's). The position reads u0 until the valve first moves.
+    on the first step). In a stick-slip cycle that band sits wherever the last reversal put it,
+    and from a band the input never leaves the model never moves; ``stuck = u0 − S + φ·(S + J)``,
+    φ in [0, 1], spans every start the first sample allows (φ = S/(S + J) is BDSIM's). The
+    position reads u0 until the valve first moves.
     """
     x = _prep(u, clip)
     s, j = _pairs(S, J)

@@ -3,8 +3,6 @@ loops, apparent stiction from the ellipse, and the maintenance trend."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -178,7 +176,7 @@ def test_slow_loop_with_an_ambiguous_S_is_not_reported() -> None:
     # time (rule 6). Either way no S is reported.
     q = _case_loop("temperature", "kano", 5.0, noise=0.05, warmup=486, seed=143457352)
     assert q.S_best < 4.25 and not q.reliable and q.S is None and q.reasons
-    gentle = replace(QuantificationParams(), highpass_order=2, lowpass_multiple=10.0)
+    gentle = QuantificationParams(highpass_order=2, lowpass_multiple=10.0)
     q = _case_loop("temperature", "kano", 5.0, 0.05, 486, 143457352, params=gentle)
     assert q.S_best < 4.25  # more than 15 % below the true S
     assert not q.reliable and q.S is None
@@ -215,19 +213,12 @@ def test_he_valve_J_is_polished_at_S() -> None:
     # J/S values are a quarter apart and each He pair is tried from three starts only: S came
     # out right but J = 4.17 %, from the refinement around the coarse J/S = 0.75; J = S from
     # its own best start fits better, and the J polish (every J/S at S*, twenty starts) finds it
-    q = _case_loop("flow", "he", 5.0, noise=0.3, warmup=520, seed=210080626)
+    args = ("flow", "he", 5.0, 0.3, 520, 210080626)
+    q = _case_loop(*args)
     assert q.reliable, q.reasons
     assert q.model == "he" and q.S is not None and q.J is not None
     assert abs(q.S - 5.0) <= 0.1 and abs(q.J - 5.0) <= 0.1
-    coarse = _case_loop(
-        "flow",
-        "he",
-        5.0,
-        noise=0.3,
-        warmup=520,
-        seed=210080626,
-        params=replace(QuantificationParams(), j_polish_ratios=1),
-    )
+    coarse = _case_loop(*args, params=QuantificationParams(j_polish_ratios=1))  # J = 0 only
     assert coarse.J is not None and coarse.J < 4.5
 
 
