@@ -93,7 +93,8 @@ def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | Non
             f"-> S*={q.S_best:.2f} J*={q.J_best:.2f} ({q.model}, alt {q.S_alternative:.2f}) "
             f"fit={q.fit:.0f} ratio={q.score_ratio:.2f} period={osc.period_s:.0f}s "
             f"S*/excursion={q.S_best / q.op_excursion if q.op_excursion else 0:.2f} "
-            f"reliable={q.reliable} {q.reasons}"
+            + (f"notched {q.external_period_s:.0f}s " if q.external_period_s else "")
+            + f"reliable={q.reliable} {q.reasons}"
         )
     return q.S, q.J, q.reliable, q.reasons
 

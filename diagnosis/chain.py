@@ -299,6 +299,7 @@ def _quantify_into(
         "S_best": q.S_best,
         "J_best": q.J_best,
         "reasons": q.reasons,
+        "external_period_s": q.external_period_s,
     }
     ell = apparent_stiction(op, pv, ts, osc.period_s) if osc.period_s else None
     diag.stiction["apparent"] = ell.apparent_stiction if ell is not None else None
@@ -306,6 +307,11 @@ def _quantify_into(
         diag.notes.append(
             f"stiction quantified ({q.model} model, fit {q.fit:.0f} %): "
             f"S = {q.S_best:.2f} %, J = {q.J_best:.2f} % of valve travel"
+            + (
+                f" (an external oscillation of period {q.external_period_s:.0f} s filtered out)"
+                if q.external_period_s
+                else ""
+            )
         )
     else:
         diag.notes.append("S and J not reported: " + "; ".join(q.reasons))

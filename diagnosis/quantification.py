@@ -21,8 +21,12 @@ that fits worse than another J from that J's own best start. A Kano valve starts
 first OP sample at the edge of its break band facing the bulk of the OP, so it cannot lock (a
 band centred on the first sample, BDSIM's start, may hold a large valve still for the whole
 window). OP and PV are prefiltered alike: a steep (4th-order) high-pass a fifth of the
-oscillation frequency down removes slow loads and slow external oscillations, which would bias
-the ARX model, and a low-pass at five times it removes noise. Integrating (level) loops use the
+oscillation frequency down removes slow loads, which would bias the ARX model, and a low-pass
+at five times it removes noise. An external oscillation slower than the loop's cycle (a
+sinusoidal load from elsewhere in the plant) is only partly removed by the high-pass: when OP
+shows it as a spectral line, a notch at its frequency is added to the prefilter (Bacci di
+Capaci, Scali & Pannocchia 2016: a model of the additive disturbance improves the estimate when
+a disturbance acts together with stiction). Integrating (level) loops use the
 same structure: the high-pass removes the integrator's drift, and fitting PV increments instead
 only amplified noise.
 
@@ -46,7 +50,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import butter, lfilter, sosfilt
+from scipy.signal import butter, iirnotch, lfilter, sosfilt, tf2sos
 
 try:
     # lfilter's own kernel: lfilter's array-API dispatch costs ~20 µs a call, 40 % of one row's
@@ -153,6 +157,15 @@ class QuantificationParams:
     oscillation (a twentieth to a fifth of the loop's frequency) does not bias the ARX model
     (order 2: on a pressure loop with such an oscillation the true valve position fitted 82 %
     and a 25 % smaller S fitted better; order 4: 92 %, and the true S wins) [R]."""
+    line_max_fraction: float = 0.6
+    """A slow external oscillation is looked for in OP below this fraction of the loop's
+    oscillation frequency ..."""
+    line_prominence: float = 30.0
+    """... as a spectral line standing this many times above the median power around it; OP
+    and PV then both go through a notch at its frequency [R]."""
+    notch_q: float = 3.0
+    """Quality factor of that notch: a third of its frequency wide, which covers the line's
+    frequency resolution (one cycle per window) [R]."""
     lowpass_multiple: float = 5.0
     """Prefilter high edge in multiples of the oscillation frequency (the stick-slip harmonics
     that carry S kept, measurement noise removed) [R]."""
@@ -175,6 +188,9 @@ class QuantificationResult:
     model: str = "kano"
     stuck_fraction: float = 0.0
     op_excursion: float = 0.0
+    external_period_s: float | None = None
+    """Period (s) of the slow external oscillation notched out of OP and PV before the
+    identification; None when OP showed none."""
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
 
@@ -344,6 +360,33 @@ def band_prefilter(f_lo: float, f_hi: float, highpass_order: int = 4) -> Prefilt
     if lo * 1.5 < hi < 0.95:
         sos = np.vstack([sos, butter(2, hi, output="sos")])
     return np.asarray(sos, dtype=np.float64)
+
+
+def slow_line(u: FloatArray, max_frequency: float, prominence: float = 30.0) -> float | None:
+    """Frequency (cycles per sample) of the strongest spectral line of ``u`` between 2.5 cycles
+    per window and ``max_frequency``, or None when its power (Hann-windowed periodogram) is
+    less than ``prominence`` times the median power around it (0.6–1.6 × its frequency, the
+    window's leakage bins left out).
+
+    A sinusoidal load from elsewhere in the plant, slower than the loop's own cycle, shows as
+    such a line in OP, which cancels it. The ARX model cannot explain it from the valve, and
+    half of it passes the high-pass prefilter: it biases the fit towards a wrong S or makes it
+    too poor to report. Models with an additive disturbance give better stiction estimates
+    when a disturbance acts together with stiction (Bacci di Capaci, Scali & Pannocchia 2016).
+    """
+    n = u.size
+    freq = np.fft.rfftfreq(n)
+    power = np.abs(np.fft.rfft((u - u.mean()) * np.hanning(n))) ** 2
+    band = np.flatnonzero((freq > 2.5 / n) & (freq < max_frequency))
+    if band.size == 0:
+        return None
+    k = int(band[np.argmax(power[band])])
+    around = (
+        (freq > 0.6 * freq[k]) & (freq < 1.6 * freq[k]) & (np.abs(np.arange(freq.size) - k) > 2)
+    )
+    if not around.any() or power[k] < prominence * float(np.median(power[around])):
+        return None
+    return float(freq[k])
 
 
 def _filter_rows(sos: Prefilter, x: FloatArray) -> FloatArray:
@@ -666,6 +709,10 @@ def quantify_stiction(
         p.lowpass_multiple / period_samples,
         p.highpass_order,
     )
+    # a slow external oscillation is notched out of both sides (the valve rows and PV)
+    line = slow_line(u, p.line_max_fraction / period_samples, p.line_prominence)
+    if line is not None:
+        pf = np.vstack([pf, tf2sos(*iirnotch(line, p.notch_q, fs=1.0))])
     # The Kano valve starts stuck with its break band at the first sample's edge facing the
     # bulk of the OP: it breaks free the first time the OP passes u0 that way, and so never
     # locks (from BDSIM's centred band a valve with S + J above the OP range never moves).
@@ -808,5 +855,6 @@ def quantify_stiction(
         model=main.model,
         stuck_fraction=stuck,
         op_excursion=excursion,
+        external_period_s=ts / line if line is not None else None,
         surface={"S": main.S, "J": main.J, "score": main.score},
     )

@@ -3,6 +3,8 @@ loops, apparent stiction from the ellipse, and the maintenance trend."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from plantcheck.diagnosis.quantification import (
     QuantificationParams,
     QuantificationResult,
     quantify_stiction,
+    slow_line,
 )
 from plantcheck.diagnosis.stiction_trend import WEEK_S, TrendParams, stiction_trend
 from plantcheck.simulator.cases import process_setup
@@ -131,17 +134,22 @@ def _case_loop(
     params: QuantificationParams | None = None,
     J: float | None = None,
     integrating: bool | None = None,
+    external_period_s: float | None = None,
 ) -> QuantificationResult:
     """A loop of the quantification benchmark's case families (J = S unless given, a random-walk
-    load of 1 % of S), quantified on its 3,600 samples."""
+    load of 1 % of S and, with ``external_period_s``, a sinusoidal load of S/2 % of travel),
+    quantified on its 3,600 samples."""
     su = process_setup(process)
+    loads = (Disturbance(random_walk_std=0.01 * S),)
+    if external_period_s is not None:
+        loads += (Disturbance(sine_amplitude=0.5 * S, sine_period_s=external_period_s),)
     cfg = LoopConfig(
         process=su.process,
         controller=su.pi,
         valve=valve,  # type: ignore[arg-type]
         S=S,
         J=S if J is None else J,
-        disturbances=(Disturbance(random_walk_std=0.01 * S),),
+        disturbances=loads,
         noise_std=noise,
         sample_time_s=su.ts,
         n_samples=3600,
@@ -220,6 +228,35 @@ def test_he_valve_J_is_polished_at_S() -> None:
     assert abs(q.S - 5.0) <= 0.1 and abs(q.J - 5.0) <= 0.1
     coarse = _case_loop(*args, params=QuantificationParams(j_polish_ratios=1))  # J = 0 only
     assert coarse.J is not None and coarse.J < 4.5
+
+
+def test_slow_external_oscillation_is_notched_out() -> None:
+    # level loop (integrator, θ = 5 s, Ts = 1 s) with a Kano valve S = J = 5 % and a sinusoidal
+    # load of 2.5 % with a period of 185 s, about six loop periods: the high-pass at a fifth of
+    # the loop's frequency leaves half of it, and the best fit was S = 2.3 %, J = 0.5 % (fit
+    # 84 %, refused). OP shows it as a spectral line; notched out of OP and PV, the true valve
+    # is found and reported, with the period that was removed
+    args = ("level", "kano", 5.0, 0.05, 407, 328858404)
+    q = _case_loop(*args, integrating=True, external_period_s=185.17)
+    assert q.reliable, q.reasons
+    assert q.S is not None and q.J is not None
+    assert abs(q.S - 5.0) <= 0.1 and abs(q.J - 5.0) <= 0.1
+    assert q.external_period_s is not None and abs(q.external_period_s / 185.17 - 1) < 0.1
+    no_notch = QuantificationParams(line_prominence=math.inf)
+    q = _case_loop(*args, params=no_notch, integrating=True, external_period_s=185.17)
+    assert q.external_period_s is None and abs(q.S_best - 5.0) > 1.0
+    # without the external load OP shows no line and nothing is notched
+    assert _case_loop(*args, integrating=True).external_period_s is None
+
+
+def test_slow_line_finds_a_sinusoid_under_noise() -> None:
+    rng = np.random.default_rng(4)
+    k = np.arange(3600)
+    noise = np.cumsum(rng.normal(size=k.size)) * 0.05 + rng.normal(size=k.size)
+    line = slow_line(noise + 3.0 * np.sin(2 * np.pi * k / 180.0), 0.01)
+    assert line is not None and abs(1 / line - 180.0) < 10.0
+    assert slow_line(noise, 0.01) is None
+    assert slow_line(noise[:100], 0.01) is None  # no frequency of 2.5 cycles per window below it
 
 
 def test_window_of_few_periods_gets_no_S() -> None:
