@@ -26,9 +26,9 @@ at five times it removes noise. An external oscillation slower than the loop's c
 sinusoidal load from elsewhere in the plant) is only partly removed by the high-pass: when OP
 shows it as a spectral line, a notch at its frequency is added to the prefilter (Bacci di
 Capaci, Scali & Pannocchia 2016: a model of the additive disturbance improves the estimate when
-a disturbance acts together with stiction). Integrating (level) loops use the
-same structure: the high-pass removes the integrator's drift, and fitting PV increments instead
-only amplified noise.
+a disturbance acts together with stiction). Integrating (level) loops use the same structure:
+the high-pass removes the integrator's drift, and fitting PV increments instead only amplified
+noise.
 
 Reliability rules (methods §6.1, reconstructed [R]): the estimate is reported only when the
 window holds at least ten oscillation periods, the simulated fit is good enough, the stiction
@@ -370,9 +370,10 @@ def slow_line(u: FloatArray, max_frequency: float, prominence: float = 30.0) -> 
 
     A sinusoidal load from elsewhere in the plant, slower than the loop's own cycle, shows as
     such a line in OP, which cancels it. The ARX model cannot explain it from the valve, and
-    half of it passes the high-pass prefilter: it biases the fit towards a wrong S or makes it
-    too poor to report. Models with an additive disturbance give better stiction estimates
-    when a disturbance acts together with stiction (Bacci di Capaci, Scali & Pannocchia 2016).
+    the high-pass prefilter lets part of it through (about a third at 0.15 × the loop's
+    frequency): it biases the fit towards a wrong S or makes it too poor to report. Models
+    with an additive disturbance give better stiction estimates when a disturbance acts
+    together with stiction (Bacci di Capaci, Scali & Pannocchia 2016).
     """
     n = u.size
     freq = np.fft.rfftfreq(n)

@@ -232,8 +232,8 @@ def test_he_valve_J_is_polished_at_S() -> None:
 
 def test_slow_external_oscillation_is_notched_out() -> None:
     # level loop (integrator, θ = 5 s, Ts = 1 s) with a Kano valve S = J = 5 % and a sinusoidal
-    # load of 2.5 % with a period of 185 s, about six loop periods: the high-pass at a fifth of
-    # the loop's frequency leaves half of it, and the best fit was S = 2.3 %, J = 0.5 % (fit
+    # load of 2.5 % with a period of 185 s, several loop periods: the high-pass at a fifth of
+    # the loop's frequency lets part of it through, and the best fit was S = 2.3 %, J = 0.5 % (fit
     # 84 %, refused). OP shows it as a spectral line; notched out of OP and PV, the true valve
     # is found and reported, with the period that was removed
     args = ("level", "kano", 5.0, 0.05, 407, 328858404)
