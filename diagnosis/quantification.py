@@ -432,6 +432,21 @@ def _valve_positions(
     return he_grid(u, (s_arr + j_arr) / 2.0, (s_arr - j_arr) / 2.0, x0=x0)
 
 
+def _rows_from_start(v: FloatArray) -> FloatArray:
+    """Each row of ``v`` minus its first value, as a new C-contiguous array. The grids return
+    time along the first axis; one transposing pass over thousands of rows misses the cache at
+    every element, a copy in tiles of 256 rows × 128 samples takes half the time."""
+    if v.flags.c_contiguous:
+        return np.asarray(v - v[:, :1], dtype=np.float64)
+    out = np.empty(v.shape)
+    rows, n = v.shape
+    for i in range(0, rows, 256):
+        for k in range(0, n, 128):
+            out[i : i + 256, k : k + 128] = v[i : i + 256, k : k + 128]
+    out -= out[:, :1].copy()
+    return out
+
+
 def _valves(
     prob: _Problem, model: Model, S: FloatArray, J: FloatArray, phase: ArrayLike = 0.5
 ) -> FloatArray:
@@ -440,7 +455,7 @@ def _valves(
     vt = v.T  # time along the first axis: the grids' own memory layout, one pass
     moves = np.count_nonzero(vt[1:] != vt[:-1], axis=0)
     # the same linear filter on both sides keeps PV = G·v and removes slow load drift and noise
-    vf = _filter_rows(prob.prefilter, np.subtract(v, v[:, :1], order="C"))
+    vf = _filter_rows(prob.prefilter, _rows_from_start(v))
     vf[moves < prob.min_moves] = np.nan
     return np.asarray(vf, dtype=np.float64)
 
