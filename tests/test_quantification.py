@@ -14,6 +14,7 @@ from plantcheck.diagnosis.oscillation import detect_oscillation
 from plantcheck.diagnosis.quantification import (
     QuantificationParams,
     QuantificationResult,
+    _rows_from_start,
     quantify_stiction,
     slow_line,
 )
@@ -278,3 +279,16 @@ def test_bad_input_gets_a_clear_error_or_reason() -> None:
         quantify_stiction(np.r_[op[:-1], np.nan], pv, 1.0, 31.4)
     q = quantify_stiction(np.full(600, 50.0), pv, 1.0, 31.4)
     assert not q.reliable and q.S is None and "OP does not move" in q.reasons[0]
+
+
+def test_valve_rows_copied_in_tiles_are_exact() -> None:
+    # the grids return time along the first axis; the tiled row-major copy must equal the
+    # plain subtraction, for shapes that do and do not fill whole tiles
+    rng = np.random.default_rng(1)
+    for shape in [(1, 50), (300, 3600), (700, 3601)]:
+        v = np.asfortranarray(rng.normal(size=shape))
+        rows = _rows_from_start(v)
+        assert rows.flags.c_contiguous
+        assert np.array_equal(rows, np.subtract(v, v[:, :1], order="C"))
+        c = np.ascontiguousarray(v)
+        assert np.array_equal(_rows_from_start(c), c - c[:, :1])
