@@ -90,9 +90,9 @@ class QuantificationParams:
     """Grid points over J/S in [0, max_ratio]."""
     he_n_ratio: int = 5
     """Grid points over J/S for the He structure's coarse pass."""
-    he_phases: int = 3
+    he_phases: int = 4
     """Starting positions tried for the He valve, evenly spaced over one slip (J) [R]."""
-    he_polish_candidates: int = 4
+    he_polish_candidates: int = 6
     """The He phase polish retries the best pair of this many best S values of the coarse grid
     ..."""
     he_polish_phases: int = 20

@@ -219,16 +219,19 @@ def test_valve_with_J_equal_to_S_is_found_from_its_start(
 
 def test_he_valve_J_is_polished_at_S() -> None:
     # flow loop, He valve S = J = 5 % of travel (it lands on the OP at every slip). The grid's
-    # J/S values are a quarter apart and each He pair is tried from three starts only: S came
-    # out right but J = 4.17 %, from the refinement around the coarse J/S = 0.75; J = S from
-    # its own best start fits better, and the J polish (every J/S at S*, twenty starts) finds it
+    # J/S values are a quarter apart; with each He pair tried from three starts (the four best
+    # S values polished) S came out right but J = 4.17 %, from the refinement around the coarse
+    # J/S = 0.75; J = S from its own best start fits better, and the J polish (every J/S at S*,
+    # twenty starts) finds it. With the default four starts the coarse grid finds it too.
     args = ("flow", "he", 5.0, 0.3, 520, 210080626)
-    q = _case_loop(*args)
-    assert q.reliable, q.reasons
-    assert q.model == "he" and q.S is not None and q.J is not None
-    assert abs(q.S - 5.0) <= 0.1 and abs(q.J - 5.0) <= 0.1
-    coarse = _case_loop(*args, params=QuantificationParams(j_polish_ratios=1))  # J = 0 only
-    assert coarse.J is not None and coarse.J < 4.5
+    three = {"he_phases": 3, "he_polish_candidates": 4}
+    for params in (QuantificationParams(**three), None):
+        q = _case_loop(*args, params=params)
+        assert q.reliable, q.reasons
+        assert q.model == "he" and q.S is not None and q.J is not None
+        assert abs(q.S - 5.0) <= 0.1 and abs(q.J - 5.0) <= 0.1
+    coarse = _case_loop(*args, params=QuantificationParams(j_polish_ratios=1, **three))
+    assert coarse.J is not None and coarse.J < 4.5  # J/S = 0 only in the polish
 
 
 def test_slow_external_oscillation_is_notched_out() -> None:
