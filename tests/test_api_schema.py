@@ -33,5 +33,8 @@ def test_api_conforms_to_its_openapi(service: Service, tmp_path: Path) -> None:
         str(tmp_path),
     ]
     for auth in ([], ["-H", f"X-API-Key: {API_KEY}"]):  # without the key, then with it
-        out = subprocess.run(args + auth, capture_output=True, text=True, timeout=900, check=False)
+        # run in tmp_path: schemathesis keeps its cache (.schemathesis/) in the working directory
+        out = subprocess.run(
+            args + auth, capture_output=True, text=True, timeout=900, check=False, cwd=tmp_path
+        )
         assert out.returncode == 0, out.stdout[-6000:] + out.stderr[-2000:]
