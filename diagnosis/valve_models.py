@@ -51,10 +51,11 @@ SCALAR_PAIRS = 6
 """Up to this many pairs a plain Python loop per pair beats the per-step numpy overhead."""
 
 
-def _kano_one(x: list[float], s: float, j: float, stuck: float | None) -> list[float]:
-    """Kano model for one pair, sample by sample (the BDSIM logic of methods §5.3)."""
+def _kano_one(x: list[float], s: float, j: float, stuck: float) -> list[float]:
+    """Kano model for one pair, sample by sample (the BDSIM logic of methods §5.3), started
+    stuck at input ``stuck`` (see kano_grid)."""
     half = (s - j) / 2.0
-    moving, d, us, y = False, -1.0, x[0] if stuck is None else stuck, x[0]
+    moving, d, us, y = False, -1.0, stuck, x[0]
     out = [y]
     du_old = 0.0
     for k in range(1, len(x)):
@@ -144,7 +145,7 @@ def kano(
 ) -> FloatArray:
     """Kano et al. (2004) model for one (S, J) pair (% travel); ``stuck`` as in
     :func:`kano_grid`."""
-    return np.array(_kano_one(_prep(u, clip).tolist(), float(S), float(J), stuck))
+    return np.asarray(kano_grid(u, [S], [J], clip, None if stuck is None else [stuck])[0])
 
 
 def choudhury_grid(u: ArrayLike, S: ArrayLike, J: ArrayLike, clip: bool = False) -> FloatArray:
