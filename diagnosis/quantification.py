@@ -649,16 +649,15 @@ def _search(
     # J/S and starts are coarse and a He fit is sharp in the start at each J, so the local
     # refinement can keep a J that fits worse than another one from that J's own best start.
     r_j = np.linspace(0.0, p.max_ratio, p.j_polish_ratios)
-    n_ph = p.j_polish_phases if phases > 1 else 1
-    ph_j = (
-        np.tile(np.arange(n_ph) / n_ph, r_j.size) if phases > 1 else np.full(r_j.size, best.phase)
+    starts = (
+        np.arange(p.j_polish_phases) / p.j_polish_phases if phases > 1 else np.array([best.phase])
     )
     j_pick = _pick(
         prob,
         model,
-        np.full(ph_j.size, best.S),
-        best.S * np.repeat(r_j, n_ph),
-        ph_j,
+        np.full(r_j.size * starts.size, best.S),
+        best.S * np.repeat(r_j, starts.size),
+        np.tile(starts, r_j.size),
         order,
         [best.delay],
     )
