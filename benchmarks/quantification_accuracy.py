@@ -92,7 +92,8 @@ def estimate(cfg: LoopConfig, loop_type: str) -> tuple[float | None, float | Non
             f"    {loop_type:11s} valve={cfg.valve} S={cfg.S:g} J={cfg.J:g} noise={cfg.noise_std} "
             f"-> S*={q.S_best:.2f} J*={q.J_best:.2f} ({q.model}, alt {q.S_alternative:.2f}) "
             f"fit={q.fit:.0f} ratio={q.score_ratio:.2f} period={osc.period_s:.0f}s "
-            f"S*/excursion={q.S_best / q.op_excursion if q.op_excursion else 0:.2f} "
+            + (f"cycle {q.period_s:.0f}s " if q.period_s != osc.period_s else "")
+            + f"S*/excursion={q.S_best / q.op_excursion if q.op_excursion else 0:.2f} "
             + (f"notched {q.external_period_s:.0f}s " if q.external_period_s else "")
             + f"reliable={q.reliable} {q.reasons}"
         )

@@ -279,6 +279,20 @@ def _quantify_recent(
     return quantify_stiction(op, pv, ts, period_s, p.quantification, integrating)
 
 
+def _filtered_note(
+    cycle_s: float | None, detected_s: float | None, external_s: float | None
+) -> str:
+    """What the quantification filtered out, for its note (periods in s)."""
+    if cycle_s and detected_s and cycle_s != detected_s:
+        return (
+            f" (on the valve's own {cycle_s:.0f} s cycle, found beneath the detected "
+            f"{detected_s:.0f} s oscillation, which was filtered out as external)"
+        )
+    if external_s:
+        return f" (an external oscillation of period {external_s:.0f} s filtered out)"
+    return ""
+
+
 def _quantify_into(
     diag: Diagnosis,
     op: FloatArray,
@@ -300,18 +314,17 @@ def _quantify_into(
         "J_best": q.J_best,
         "reasons": q.reasons,
         "external_period_s": q.external_period_s,
+        "period_s": q.period_s,
     }
-    ell = apparent_stiction(op, pv, ts, osc.period_s) if osc.period_s else None
+    # the valve's own cycle: a faster oscillation found beneath the detected one, if any
+    cycle_s = q.period_s or osc.period_s
+    ell = apparent_stiction(op, pv, ts, cycle_s) if cycle_s else None
     diag.stiction["apparent"] = ell.apparent_stiction if ell is not None else None
     if q.reliable:
         diag.notes.append(
             f"stiction quantified ({q.model} model, fit {q.fit:.0f} %): "
             f"S = {q.S_best:.2f} %, J = {q.J_best:.2f} % of valve travel"
-            + (
-                f" (an external oscillation of period {q.external_period_s:.0f} s filtered out)"
-                if q.external_period_s
-                else ""
-            )
+            + _filtered_note(q.period_s, osc.period_s, q.external_period_s)
         )
     else:
         diag.notes.append("S and J not reported: " + "; ".join(q.reasons))

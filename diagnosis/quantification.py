@@ -65,6 +65,7 @@ try:
 except ImportError:  # pragma: no cover - a SciPy that moved its private kernel
     _sosfilt = None
 
+from plantcheck.diagnosis.oscillation import faster_oscillation
 from plantcheck.diagnosis.signal_tools import FloatArray, moving_average
 from plantcheck.diagnosis.valve_models import he_grid, kano_grid
 
@@ -166,6 +167,9 @@ class QuantificationParams:
     notch_q: float = 3.0
     """Quality factor of that notch: a third of its frequency wide, which covers the line's
     frequency resolution (one cycle per window) [R]."""
+    separate_oscillations: bool = True
+    """Quantify at a faster oscillation found beneath the given one (a stick-slip cycle under
+    a slow external oscillation; Thornhill, Huang & Zhang 2003) [R]."""
     lowpass_multiple: float = 5.0
     """Prefilter high edge in multiples of the oscillation frequency (the stick-slip harmonics
     that carry S kept, measurement noise removed) [R]."""
@@ -191,6 +195,9 @@ class QuantificationResult:
     external_period_s: float | None = None
     """Period (s) of the slow external oscillation notched out of OP and PV before the
     identification; None when OP showed none."""
+    period_s: float | None = None
+    """Oscillation period (s) the identification used: the given one, or a faster oscillation
+    found beneath it."""
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
 
 
@@ -685,7 +692,9 @@ def quantify_stiction(
     ts:
         Sample time, s.
     period_s:
-        Oscillation period, s: sets the prefilter band and bounds the delay search.
+        Oscillation period, s: sets the prefilter band and bounds the delay search. When a
+        faster oscillation is found beneath it (``separate_oscillations``), the valve is
+        identified on that one and the given one is notched out as external.
     integrating:
         Whether the process integrates (level loops); False enables rule 9 (a deadband alone
         does not sustain a limit cycle in a self-regulating loop); None when unknown.
@@ -717,6 +726,13 @@ def quantify_stiction(
         )
     u = u - u.mean()
     y = y - y.mean()
+    dominant_s: float | None = None
+    if period_s and p.separate_oscillations:
+        # a stick-slip cycle under a slower, stronger external oscillation: the detection
+        # reports the external one; the valve is identified at the loop's own cycle
+        fast = faster_oscillation(y, ts, period_s)
+        if fast is not None and fast.period_s is not None:
+            dominant_s, period_s = period_s, fast.period_s
     period_samples = period_s / ts if period_s else y.size / 10.0
     max_delay = int(min(max(2, p.max_delay_fraction * period_samples), 60))
     pf = band_prefilter(
@@ -726,6 +742,9 @@ def quantify_stiction(
     )
     # a slow external oscillation is notched out of both sides (the valve rows and PV)
     line = slow_line(u, p.line_max_fraction / period_samples, p.line_prominence)
+    if line is None and dominant_s is not None:
+        # the detected oscillation was not the valve's cycle: it is the external one
+        line = ts / dominant_s
     if line is not None:
         pf = np.vstack([pf, tf2sos(*iirnotch(line, p.notch_q, fs=1.0))])
     # The Kano valve starts stuck with its break band at the first sample's edge facing the
@@ -871,5 +890,6 @@ def quantify_stiction(
         stuck_fraction=stuck,
         op_excursion=excursion,
         external_period_s=ts / line if line is not None else None,
+        period_s=period_s,
         surface={"S": main.S, "J": main.J, "score": main.score},
     )

@@ -125,26 +125,24 @@ def test_trend_projects_limit_crossing() -> None:
     assert none.n_used == 0 and none.current_S is None
 
 
-def _case_loop(
+def _case_config(
     process: str,
     valve: str,
     S: float,
     noise: float,
     warmup: int,
     seed: int,
-    params: QuantificationParams | None = None,
     J: float | None = None,
-    integrating: bool | None = None,
     external_period_s: float | None = None,
-) -> QuantificationResult:
-    """A loop of the quantification benchmark's case families (J = S unless given, a random-walk
-    load of 1 % of S and, with ``external_period_s``, a sinusoidal load of S/2 % of travel),
-    quantified on its 3,600 samples."""
+) -> LoopConfig:
+    """A loop of the quantification benchmark's case families: J = S unless given, a random-
+    walk load of 1 % of S and, with ``external_period_s``, a sinusoidal load of S/2 % of
+    travel; 3,600 samples."""
     su = process_setup(process)
     loads = (Disturbance(random_walk_std=0.01 * S),)
     if external_period_s is not None:
         loads += (Disturbance(sine_amplitude=0.5 * S, sine_period_s=external_period_s),)
-    cfg = LoopConfig(
+    return LoopConfig(
         process=su.process,
         controller=su.pi,
         valve=valve,  # type: ignore[arg-type]
@@ -157,9 +155,27 @@ def _case_loop(
         warmup_samples=warmup,
         seed=seed,
     )
+
+
+def _case_loop(
+    process: str,
+    valve: str,
+    S: float,
+    noise: float,
+    warmup: int,
+    seed: int,
+    params: QuantificationParams | None = None,
+    J: float | None = None,
+    integrating: bool | None = None,
+    external_period_s: float | None = None,
+    detect_on_op: bool = False,
+) -> QuantificationResult:
+    """:func:`_case_config`'s loop quantified at the period detected on the control error (on
+    OP with ``detect_on_op``, as the benchmark does when the error shows no oscillation)."""
+    cfg = _case_config(process, valve, S, noise, warmup, seed, J, external_period_s)
     r = simulate_loop(cfg)
-    osc = detect_oscillation(r.sp - r.pv, su.ts)
-    return quantify_stiction(r.op, r.pv, su.ts, osc.period_s, params, integrating)
+    osc = detect_oscillation(r.op if detect_on_op else r.sp - r.pv, cfg.sample_time_s)
+    return quantify_stiction(r.op, r.pv, cfg.sample_time_s, osc.period_s, params, integrating)
 
 
 def test_deadband_fit_on_a_self_regulating_loop_is_not_reported() -> None:
@@ -251,6 +267,47 @@ def test_slow_external_oscillation_is_notched_out() -> None:
     assert q.external_period_s is None and abs(q.S_best - 5.0) > 1.0
     # without the external load OP shows no line and nothing is notched
     assert _case_loop(*args, integrating=True).external_period_s is None
+
+
+def test_valve_cycle_beneath_a_stronger_external_oscillation_is_quantified() -> None:
+    # flow loop (Ts = 0.2 s), He valve S = 5 %, J = 2.5 %, PV noise 0.3, and a sinusoidal load
+    # of 2.5 % with a period of 171 s. The error's oscillation is not regular enough; on OP the
+    # detection reports the load's 170 s period. Quantified there (4 periods in the window, the
+    # prefilter band around the load) the fit was -3 % and nothing was reported. The valve's
+    # own cycle (21 s) is found beneath it (Thornhill et al. 2003) and identified on that
+    # cycle, with the detected oscillation notched out as the external one
+    args = ("flow", "he", 5.0, 0.3, 520, 340674486)
+    load = {
+        "J": 2.5,
+        "integrating": False,
+        "external_period_s": 171.43752997793086,
+        "detect_on_op": True,
+    }
+    q = _case_loop(*args, **load)  # type: ignore[arg-type]
+    assert q.reliable, q.reasons
+    assert q.S is not None and q.J is not None
+    assert abs(q.S - 5.0) <= 0.25 and abs(q.J - 2.5) <= 0.25
+    assert q.period_s is not None and 15.0 < q.period_s < 30.0
+    assert q.external_period_s is not None and abs(q.external_period_s / 171.44 - 1) < 0.1
+    single = QuantificationParams(separate_oscillations=False)
+    q = _case_loop(*args, params=single, **load)  # type: ignore[arg-type]
+    assert not q.reliable and q.period_s is not None and q.period_s > 150.0
+
+
+def test_diagnose_quantifies_on_the_valve_cycle_beneath_an_external_oscillation() -> None:
+    # level loop (Ts = 1 s), Kano valve S = J = 1 %, a sinusoidal load of 0.5 % with a period
+    # of 185 s: the chain detects the load's oscillation and finds stiction; the valve's own
+    # 19 s cycle beneath it is quantified, and the JSON and the note say so
+    cfg = _case_config("level", "kano", 1.0, 0.05, 407, 1014617088, None, 184.97746514089928)
+    r = simulate_loop(cfg)
+    d = diagnose(r.pv, r.op, cfg.sample_time_s, sp=r.sp, loop_type="level")
+    assert d.cause == "stiction"
+    assert d.oscillation["period_s"] > 150.0
+    quant = d.stiction["quantification"]
+    assert 15.0 < quant["period_s"] < 25.0
+    assert d.stiction["S"] == pytest.approx(1.0, abs=0.05)
+    assert d.stiction["J"] == pytest.approx(1.0, abs=0.05)
+    assert any("on the valve's own 19 s cycle" in note for note in d.notes), d.notes
 
 
 def test_slow_line_finds_a_sinusoid_under_noise() -> None:
