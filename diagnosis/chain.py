@@ -282,15 +282,16 @@ def _quantify_recent(
 def _filtered_note(
     cycle_s: float | None, detected_s: float | None, external_s: float | None
 ) -> str:
-    """What the quantification filtered out, for its note (periods in s)."""
+    """The cycle the quantification used and what it filtered out, for its note (s)."""
+    parts = []
     if cycle_s and detected_s and cycle_s != detected_s:
-        return (
-            f" (on the valve's own {cycle_s:.0f} s cycle, found beneath the detected "
-            f"{detected_s:.0f} s oscillation, which was filtered out as external)"
+        parts.append(
+            f"on the valve's own {cycle_s:.0f} s cycle, found beneath the detected "
+            f"{detected_s:.0f} s oscillation"
         )
     if external_s:
-        return f" (an external oscillation of period {external_s:.0f} s filtered out)"
-    return ""
+        parts.append(f"an external oscillation of period {external_s:.0f} s filtered out")
+    return f" ({'; '.join(parts)})" if parts else ""
 
 
 def _quantify_into(

@@ -266,7 +266,7 @@ def faster_oscillation(
     ``min_ratio`` times faster, and not within ``harmonic_tolerance`` (relative) of the
     dominant period / n for n up to ``max_harmonic`` [R, generated loops with a Kano or He
     valve: a faster period under a stick-slip cycle read 2.1–3.5 times faster, under an
-    external oscillation 6–9 times].
+    external oscillation mostly 6–9 times].
     """
     xd = detrend(np.asarray(x, dtype=np.float64))
     fast = detect_oscillation(bandpass(xd, ts, cutoff_multiple / period_s, math.inf), ts, params)

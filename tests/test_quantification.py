@@ -4,6 +4,7 @@ loops, apparent stiction from the ellipse, and the maintenance trend."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -158,21 +159,15 @@ def _case_config(
 
 
 def _case_loop(
-    process: str,
-    valve: str,
-    S: float,
-    noise: float,
-    warmup: int,
-    seed: int,
+    *case: Any,
     params: QuantificationParams | None = None,
-    J: float | None = None,
     integrating: bool | None = None,
-    external_period_s: float | None = None,
     detect_on_op: bool = False,
+    **case_kw: Any,
 ) -> QuantificationResult:
     """:func:`_case_config`'s loop quantified at the period detected on the control error (on
     OP with ``detect_on_op``, as the benchmark does when the error shows no oscillation)."""
-    cfg = _case_config(process, valve, S, noise, warmup, seed, J, external_period_s)
+    cfg = _case_config(*case, **case_kw)
     r = simulate_loop(cfg)
     osc = detect_oscillation(r.op if detect_on_op else r.sp - r.pv, cfg.sample_time_s)
     return quantify_stiction(r.op, r.pv, cfg.sample_time_s, osc.period_s, params, integrating)
@@ -283,14 +278,14 @@ def test_valve_cycle_beneath_a_stronger_external_oscillation_is_quantified() -> 
         "external_period_s": 171.43752997793086,
         "detect_on_op": True,
     }
-    q = _case_loop(*args, **load)  # type: ignore[arg-type]
+    q = _case_loop(*args, **load)
     assert q.reliable, q.reasons
     assert q.S is not None and q.J is not None
     assert abs(q.S - 5.0) <= 0.25 and abs(q.J - 2.5) <= 0.25
     assert q.period_s is not None and 15.0 < q.period_s < 30.0
     assert q.external_period_s is not None and abs(q.external_period_s / 171.44 - 1) < 0.1
     single = QuantificationParams(separate_oscillations=False)
-    q = _case_loop(*args, params=single, **load)  # type: ignore[arg-type]
+    q = _case_loop(*args, params=single, **load)
     assert not q.reliable and q.period_s is not None and q.period_s > 150.0
 
 
