@@ -10,7 +10,7 @@ then the split between aggressive tuning and an external disturbance (``cause_sp
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -37,6 +37,12 @@ from plantcheck.diagnosis.shape_tests import (
     significant_half_cycles,
 )
 from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average, noise_sigma
+from plantcheck.diagnosis.stick_slip import (
+    StickSlipParams,
+    StickSlipResult,
+    detect_stick_slip,
+    size_from_events,
+)
 from plantcheck.diagnosis.stiction_vote import (
     LOOP_TYPES,
     VoteParams,
@@ -48,7 +54,13 @@ from plantcheck.diagnosis.stiction_vote import (
 from plantcheck.diagnosis.test_result import StictionTestResult
 from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_index
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
-from plantcheck.diagnosis.window import BoolArray, WindowParams, check_window, fill_short_gaps
+from plantcheck.diagnosis.window import (
+    BoolArray,
+    WindowParams,
+    WindowReport,
+    check_window,
+    fill_short_gaps,
+)
 
 
 @dataclass(frozen=True)
@@ -65,6 +77,7 @@ class ChainParams:
     split: SplitParams = field(default_factory=SplitParams)
     quantification: QuantificationParams = field(default_factory=QuantificationParams)
     valve: ValveParams = field(default_factory=ValveParams)
+    stick_slip: StickSlipParams = field(default_factory=StickSlipParams)
 
 
 def run_stiction_tests(
@@ -172,6 +185,14 @@ def diagnose(
     diag.indices["hagglund_load_count"] = None
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
+    events = None
+    if win.verdict is None or win.sp_limited:
+        events, gain_sign = _stick_slip_events(win, loop_type, ts, p)
+        _events_into(diag, events, ts)
+        if win.verdict is not None and events.test.verdict == "stiction" and not exclude_stiction:
+            # set-point steps hide the oscillation tests, not the events around them
+            _stiction_from_events(diag, events, win.pv, win.op, gain_sign)
+            return diag
     if win.verdict is not None:
         diag.cause = win.verdict
         diag.confidence = 0.9
@@ -209,7 +230,19 @@ def diagnose(
             else idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
         )
         diag.indices["idle_index"] = ii
-        if ii is not None and ii > p.tuning.idle_limit:
+        sluggish = ii is not None and ii > p.tuning.idle_limit
+        if events is not None and events.test.verdict == "stiction" and not exclude_stiction:
+            # A sluggish loop creeps toward SP with OP and PV together (idle index > 0); a load
+            # change toward SP then looks like a slip. A sticky valve holds the PV while OP
+            # moves and slips against it (index <= 0), unless it does not move at all.
+            if not sluggish or events.unresponsive is not None:
+                _stiction_from_events(diag, events, win.pv, win.op, gain_sign)
+                return diag
+            diag.notes.append(
+                "stick-slip events set aside: the loop recovers like a sluggish one "
+                f"(idle index {ii:.2f})"
+            )
+        if sluggish and ii is not None:
             diag.cause = "sluggish_tuning"
             diag.confidence = float(min(0.9, 0.5 + (ii - p.tuning.idle_limit)))
         else:
@@ -231,6 +264,8 @@ def diagnose(
         diag.actions = [action_for(diag.cause)]
         return diag
     tests = run_stiction_tests(e, op_s, pv_s, ts, osc, loop_type, p)
+    if events is not None:
+        tests["stick_slip"] = _events_vote(events, p.stick_slip)
     v = vote(list(tests.values()), p.vote)
     diag.stiction["tests"] = _tests_json(tests)
     diag.stiction["votes"] = {name: r.verdict for name, r in tests.items()}
@@ -248,13 +283,115 @@ def diagnose(
         diag.notes.append(f"stiction: {v.n_stiction} of {v.n_tests} tests agree")
         if quantify:
             _quantify_into(diag, op_s, pv_s, ts, osc, p)
+        if events is not None:
+            _estimate_into(diag, events, win.pv, win.op, gain_sign)
     else:
         split = split_cause(op_s, pv_s, ts, osc, tests, v, pi, loop_type, p.split)
         diag.cause = split.cause
         diag.confidence = split.confidence
         diag.notes.append(split.reason)
-    diag.actions = [action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))]
+    diag.actions = [_stiction_action(diag)]
     return diag
+
+
+def _stick_slip_events(
+    win: WindowReport, loop_type: str, ts: float, p: ChainParams
+) -> tuple[StickSlipResult, int]:
+    """Stick-slip events over the whole cleaned window (methods §4.10) and the process gain
+    sign they were read with (from the controller's action, identified on the same window)."""
+    gain_sign = identify_pi(win.op, win.pv, win.sp, ts).gain_sign
+    res = detect_stick_slip(
+        win.pv, win.op, win.sp, is_integrating(loop_type), gain_sign, p.stick_slip
+    )
+    return res, gain_sign
+
+
+def _events_vote(res: StickSlipResult, params: StickSlipParams) -> StictionTestResult:
+    """The stick-slip test as a vote beside the oscillation-based tests: an oscillating loop
+    (aggressive tuning, a periodic disturbance) turns OP at every half-cycle and gives a few
+    events by accident, so there it votes ``stiction`` only with ``oscillating_strong_events``
+    events confirmed by the valve-step model (or a valve that does not respond)."""
+    n_strong = sum(ev.strong for ev in res.events)
+    if res.unresponsive is not None or n_strong >= params.oscillating_strong_events:
+        return res.test
+    return replace(res.test, verdict="undecided")
+
+
+def _events_into(diag: Diagnosis, res: StickSlipResult, ts: float) -> None:
+    """The optional ``stiction.events`` (contracts §2): times in s from the window's first
+    sample, OP travel in %, PV jump in PV units."""
+    if res.events:
+        diag.stiction["events"] = [
+            {
+                "start": ev.start * ts,
+                "end": ev.end * ts,
+                "op_travel": ev.op_travel,
+                "pv_jump": ev.pv_jump,
+            }
+            for ev in res.events
+        ]
+
+
+def _stiction_from_events(
+    diag: Diagnosis, res: StickSlipResult, pv: FloatArray, op: FloatArray, gain_sign: int
+) -> None:
+    """Cause ``stiction`` from stick-slip events alone (no sustained oscillation needed).
+
+    Confidence grows with the events the valve-step model confirms: 0.6 for one, up to 0.85;
+    0.55 for fast events alone; 0.7 for a valve that does not respond at all.
+    """
+    n_strong = sum(ev.strong for ev in res.events)
+    diag.cause = "stiction"
+    diag.stiction["detected"] = True
+    diag.stiction["tests"] = {"stick_slip": res.test.value}
+    diag.stiction["votes"] = {"stick_slip": res.test.verdict}
+    if res.unresponsive is not None:
+        diag.confidence = 0.7
+        diag.notes.append(res.unresponsive)
+        diag.notes.append(
+            "no size: the valve did not move in the window (seized, shut against its seat, or "
+            "the line is blocked); check it on site"
+        )
+    else:
+        diag.confidence = min(0.85, 0.5 + 0.1 * n_strong) if n_strong else 0.55
+        diag.notes.append("stiction from stick-slip events: " + res.test.detail)
+        _estimate_into(diag, res, pv, op, gain_sign)
+    diag.actions = [_stiction_action(diag)]
+
+
+def _estimate_into(
+    diag: Diagnosis, res: StickSlipResult, pv: FloatArray, op: FloatArray, gain_sign: int
+) -> None:
+    """The optional ``stiction.estimate``: the best size available (contracts §2).
+
+    A reliable Hammerstein estimate (methods §6.1) first; else the events' stickband (Kano et
+    al. 2004: median OP travel at breakaway) and slip (median PV jump through the process gain);
+    else the apparent stiction of the PV(OP) ellipse (§6.2), which ranks valves but is not S.
+    """
+    st = diag.stiction
+    if st.get("S") is not None and (st.get("quantification") or {}).get("reliable"):
+        st["estimate"] = {"S": st["S"], "J": st.get("J"), "method": "hammerstein", "reliable": True}
+        return
+    size = size_from_events(res, pv, op, gain_sign)
+    if size is not None:
+        st["estimate"] = {"S": size.S, "J": size.J, "method": "events", "reliable": size.reliable}
+        if size.reason:
+            diag.notes.append(f"S from the stick-slip events, not reliable: {size.reason}")
+        return
+    if st.get("apparent") is not None:
+        st["estimate"] = {"S": st["apparent"], "J": None, "method": "ellipse", "reliable": False}
+
+
+def _stiction_action(diag: Diagnosis) -> dict[str, str]:
+    """The suggested action, sized by the best estimate and naming its method when that is
+    not the Hammerstein identification."""
+    if diag.cause != "stiction":
+        return action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))
+    est = diag.stiction.get("estimate") or {}
+    if est.get("S") is None:
+        return action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))
+    method = est.get("method")
+    return action_for(diag.cause, est["S"], est.get("J"), method)
 
 
 def _quantify_recent(

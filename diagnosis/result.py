@@ -30,7 +30,7 @@ _ACTIONS: dict[str, tuple[str, str]] = {
     "ok": ("none", "No action: the loop performs well."),
     "stiction": (
         "valve_maintenance",
-        "Schedule valve maintenance: the control valve sticks (stick-slip limit cycle).",
+        "Schedule valve maintenance: the control valve sticks (it moves in jumps, or not at all).",
     ),
     "aggressive_tuning": (
         "retune_less_aggressive",
@@ -93,14 +93,24 @@ _ACTIONS: dict[str, tuple[str, str]] = {
 }
 
 
-def action_for(cause: str, S: float | None = None, J: float | None = None) -> dict[str, str]:
-    """The suggested action (code and operator text) for ``cause``."""
+_METHOD_WORDS = {
+    "events": " from its stick-slip events",
+    "ellipse": " (apparent stiction, from the PV(OP) ellipse)",
+}
+
+
+def action_for(
+    cause: str, S: float | None = None, J: float | None = None, method: str | None = None
+) -> dict[str, str]:
+    """The suggested action (code and operator text) for ``cause``; a stiction size (% of
+    travel) names its method unless it is the Hammerstein identification or measured."""
     code, text = _ACTIONS.get(cause, ("investigate", "Investigate the loop."))
     if cause == "deadband_backlash" and S is not None:
         text = f"{text[:-1]} (deadband {S:.1f} % of travel)."
     if cause == "stiction" and S is not None:
         jtxt = f" (J = {J:.1f} %)" if J is not None else ""
-        text = f"Schedule valve maintenance: estimated stiction S = {S:.1f} %{jtxt}."
+        how = _METHOD_WORDS.get(method or "", "")
+        text = f"Schedule valve maintenance: estimated stiction S = {S:.1f} %{jtxt}{how}."
     return {"code": code, "text": text}
 
 

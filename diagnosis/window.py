@@ -70,6 +70,9 @@ class WindowReport:
     segment: tuple[int, int]
     indices: dict[str, float] = field(default_factory=dict)
     quantised: bool = False
+    sp_limited: bool = False
+    """``insufficient_data`` only because set-point steps leave no long constant-SP stretch:
+    tests that read the whole window (stick-slip events) still apply."""
 
 
 def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
@@ -248,7 +251,7 @@ def check_window(
                 f"(longest {seg_len} samples)"
             )
             return WindowReport(
-                "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised
+                "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised, True
             )
         notes.append(
             f"set-point steps in the window: analysed the constant-SP stretch "

@@ -1,0 +1,606 @@
+"""Stick-slip events in windows without a sustained oscillation (methods.md §4.10).
+
+Kano et al. (2004, DYCOPS) find stiction from *stuck sections*: the controller output (OP)
+travels while the valve does not, until the valve breaks loose. Without a stem position the
+PV stands in for the valve: a self-regulating PV is flat while the valve sticks, an
+integrating (level) PV keeps a constant slope. One event is
+
+- a **stuck phase**: OP ramps monotonically (integral action on a persistent control error)
+  between two of its turning points, by more than its own noise, while the PV (its slope for
+  level loops) does not follow;
+- a **slip**: right after OP's turning point the PV moves, toward the set point, by a clear
+  multiple of its noise and resolution. The controller turned OP round *because* the PV
+  moved, so the PV moved while OP went the other way: no linear loop does that (a healthy
+  loop's PV follows OP's ramp with its own lag, during the ramp).
+
+Real sticky valves show one to three such events in a two-hour window, often around set-point
+steps (refinery records of ``../shared/data/refinery-stiction-dev``). Evidence accumulates over
+events: their number, the consistency of the OP travel at breakaway (the stickband, Kano et
+al. 2004) and direction reversals. Every threshold is a multiple of the signals' own noise or
+resolution [R, calibrated on the labelled refinery records and the generated short-window
+family, ``simulator.cases.generate_short_window_cases``].
+
+A second, degenerate signature is a valve that does not respond at all: OP travels through many
+% toward the set point while the PV stays flat at its value (``unresponsive_valve``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.signal import find_peaks, lfilter
+
+from plantcheck.diagnosis.signal_tools import FloatArray, IntArray, moving_average, noise_sigma
+from plantcheck.diagnosis.test_result import StictionTestResult, Verdict
+
+
+@dataclass(frozen=True)
+class StickSlipParams:
+    """Thresholds of the stick-slip event detector [R, calibrated as the module says]."""
+
+    smooth_samples: int = 3
+    """Centred moving average over this many samples before turning points and slips are read."""
+    min_samples: int = 300
+    """Fewest samples for a verdict (issue 24: from 300 samples up)."""
+    op_turn_sigma: float = 4.0
+    """An OP turning point stands this many OP-noise σ above the ramps either side (peak
+    prominence)."""
+    op_travel_sigma: float = 8.0
+    """OP travel of a stuck phase: at least this many OP-noise σ."""
+    min_stuck_samples: int = 4
+    """A stuck phase lasts at least this many samples (integral action, not a P kick)."""
+    slip_window_fraction: float = 0.5
+    """The slip is read within this share of the stuck phase's length after the breakaway
+    (at least ``min_slip_samples``), and never past OP's next turning point."""
+    min_slip_samples: int = 3
+    """Shortest window in which a slip is read, samples."""
+    slip_sigma: float = 5.0
+    """A slip moves the PV toward the set point by at least this many PV-noise σ ..."""
+    slip_resolution: float = 3.0
+    """... and this many PV resolution steps (quantised or compressed PV) ..."""
+    slip_wander: float = 2.0
+    """... and this many times the PV's wander (σ about a straight line) in the stuck phase."""
+    min_stick_slip_ratio: float = 3.0
+    """Every event: the stuck phase lasts at least this many times the slip's half-time."""
+    evidence_ratio: float = 5.0
+    """Slow loops: the stick-slip model's residual is at most 1/this of the linear one's ..."""
+    evidence_chi2: float = 300.0
+    strong_follow_fraction: float = 9.0
+    """... and the PV moved toward the set point during the stuck phase by at most this share
+    of the slip (a stuck valve holds the PV; a load change toward the set point does not wait
+    for one)."""
+    """... and the residual it removes is at least this many noise variances."""
+    stick_slip_ratio: float = 20.0
+    """Fast loops: the stuck phase lasts at least this many times the slip's half-time (a
+    linear loop rises and falls at comparable speeds) ..."""
+    slip_rate_ratio: float = 20.0
+    """... the slip's rate (half its size over the time to get there) is at least this many
+    times the PV's drift rate during the stuck phase ..."""
+    follow_fraction: float = 1.0
+    """... the PV moved toward the set point during the stuck phase by at most this share of
+    the slip ..."""
+    kick_fraction: float = 0.3
+    """... and OP moved at most this share of its travel just before the turn (a set-point
+    kick turns OP as well, and the PV then follows the kick)."""
+    min_strong_events: int = 1
+    """Events confirmed by the model: this many make the verdict ..."""
+    strong_events_per_1000: float = 0.2
+    """... and at least this many per 1,000 samples (every turning point is a chance of an
+    accidental event, so a day-long window needs more than a two-hour one)."""
+    min_fast_events: int = 2
+    """Fast events not confirmed by the model: this many make the verdict ..."""
+    fast_events_per_1000: float = 1.5
+    """... and at least this many per 1,000 samples."""
+    unresponsive_travel: float = 10.0
+    """A valve that does not respond: OP travels at least this many % of its range ..."""
+    unresponsive_flat: float = 0.15
+    """... while the PV's spread (5–95 %) stays below this share of its distance to SP ..."""
+    unresponsive_one_sign: float = 0.95
+    """... and the control error keeps one sign on at least this share of the samples."""
+    oscillating_strong_events: int = 2
+    """In an oscillating window the events vote ``stiction`` beside the other tests only with
+    this many confirmed by the model (the chain's rule; see ``chain._events_vote``)."""
+    max_candidates: int = 32
+    """Turning points read in full, the largest slips first (a limit cycle has hundreds)."""
+    max_model_candidates: int = 6
+    """At most this many turning points (the largest slips first) get the two-model test,
+    and none once an event is confirmed: a day-long window of a limit cycle has thousands."""
+    max_events: int = 12
+    """Events listed at most (the largest); the verdict needs a few."""
+
+
+@dataclass(frozen=True)
+class StickSlipEvent:
+    """One stick-slip event: sample indices of the stuck phase's start, the breakaway (OP's
+    turning point) and the end of the slip (the PV has made 90 % of its move); OP travel (% of
+    range) and PV jump (PV units, signed) at breakaway."""
+
+    start: int
+    breakaway: int
+    end: int
+    op_travel: float
+    pv_jump: float
+    strong: bool = False
+    """Confirmed by the two-model test (a valve step explains the PV far better than OP)."""
+
+
+@dataclass(frozen=True)
+class StickSlipResult:
+    """Events found in one window and their reading as a stiction test.
+
+    ``travel_median`` (% of OP range) estimates the stickband S, ``jump_median`` (PV units) the
+    slip; ``reversals`` counts successive events in opposite directions; ``unresponsive`` is
+    set when the valve did not respond at all to an OP travel of ``unresponsive_travel`` %.
+    """
+
+    events: tuple[StickSlipEvent, ...]
+    test: StictionTestResult
+    travel_median: float | None
+    travel_spread: float | None
+    jump_median: float | None
+    reversals: int
+    unresponsive: str | None
+
+
+def _resolution(x: FloatArray) -> float:
+    """Typical smallest step of a quantised or compressed signal (0 for a continuous one).
+
+    A historian that stores a value only when it changes by a deadband, or a transmitter with
+    coarse steps, leaves most consecutive differences zero; the median non-zero step is then
+    the resolution.
+    """
+    d = np.abs(np.diff(x))
+    nz = d[d > 0]
+    if nz.size == 0:
+        return 0.0
+    zero_share = 1.0 - nz.size / d.size
+    return float(np.median(nz)) if zero_share > 0.3 else 0.0
+
+
+def _turning_points(x: FloatArray, prominence: float) -> IntArray:
+    """Alternating maxima and minima of ``x`` with at least ``prominence`` (indices, sorted)."""
+    hi, _ = find_peaks(x, prominence=prominence)
+    lo, _ = find_peaks(-x, prominence=prominence)
+    idx = np.concatenate([hi, lo])
+    kind = np.concatenate([np.ones(hi.size, np.int8), -np.ones(lo.size, np.int8)])
+    order = np.argsort(idx)
+    idx, kind = idx[order], kind[order]
+    keep: list[int] = []
+    kinds: list[int] = []
+    for i, k in zip(idx.tolist(), kind.tolist(), strict=True):
+        if kinds and kinds[-1] == k:
+            # two maxima (or minima) in a row: keep the more extreme one
+            if (x[i] - x[keep[-1]]) * k > 0:
+                keep[-1] = i
+            continue
+        keep.append(i)
+        kinds.append(k)
+    return np.asarray(keep, dtype=np.int64)
+
+
+def _unresponsive(
+    op: FloatArray, pv: FloatArray, sp: FloatArray, params: StickSlipParams
+) -> str | None:
+    """A valve that does not respond: OP travels through ``unresponsive_travel`` % toward
+    correcting a persistent error while the PV stays flat. Returns the note, or None."""
+    travel = float(op[-1] - op[0])
+    e = sp - pv
+    if abs(travel) < params.unresponsive_travel:
+        return None
+    # the error kept one sign (nearly) all along: the controller kept asking for the same move
+    if max(float(np.mean(e > 0)), float(np.mean(e < 0))) < params.unresponsive_one_sign:
+        return None
+    lo, hi = np.percentile(pv, [5.0, 95.0])
+    distance = float(np.median(np.abs(e)))
+    if hi - lo > params.unresponsive_flat * distance:
+        return None
+    return (
+        f"the valve does not respond: OP travelled {travel:+.1f} % over the window while the "
+        f"PV stayed at {float(np.median(pv)):.4g}, {distance:.3g} from the set point"
+    )
+
+
+LAG_GRID = (0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+"""Process time constants tried by the two local models, samples (0: no lag)."""
+DELAY_GRID = (0, 1, 2, 4, 8)
+"""Process dead times tried by the linear model, samples."""
+
+
+def _lagged(x: FloatArray, tau: float) -> FloatArray:
+    """First-order lag with time constant ``tau`` samples, starting at rest at ``x[0]``."""
+    if tau <= 0:
+        return x
+    a = math.exp(-1.0 / tau)
+    return np.asarray(lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0], dtype=np.float64)
+
+
+def _detrended(x: FloatArray) -> FloatArray:
+    """``x`` (last axis) less its least-squares straight line (closed form: the centred time
+    axis is orthogonal to the constant)."""
+    n = x.shape[-1]
+    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
+    tt = float(t @ t) or 1.0
+    centred = x - x.mean(axis=-1, keepdims=True)
+    return np.asarray(centred - np.multiply.outer(centred @ t / tt, t), dtype=np.float64)
+
+
+def _best_fit(y: FloatArray, regressors: FloatArray, sign: float) -> float:
+    """Smallest residual sum of squares of y ≈ c0 + c1·t + c2·r over the candidate
+    regressors r (rows of ``regressors``), with c2·sign >= 0 (else c2 = 0).
+
+    Frisch–Waugh: the straight line is taken out of y and of every regressor first, so that
+    each candidate needs one slope only."""
+    r0 = _detrended(y)
+    proj = _detrended(regressors)
+    ss = np.einsum("gn,gn->g", proj, proj)
+    c2 = np.where(ss > 0, proj @ r0 / np.where(ss > 0, ss, 1.0), 0.0)
+    gain = np.where(c2 * sign > 0, c2 * c2 * ss, 0.0)
+    return float(r0 @ r0) - float(np.max(gain))
+
+
+@dataclass(frozen=True)
+class _Dynamics:
+    """Computed once per window: OP through every lag of ``LAG_GRID`` (rows; the longest delay
+    of ``DELAY_GRID`` as padding in front; the process state carries over from one event to
+    the next), and the unit-step response of every lag over the window's length."""
+
+    op_lags: FloatArray
+    rise: FloatArray
+    pad: int
+
+    @classmethod
+    def of(cls, op: FloatArray) -> _Dynamics:
+        pad = max(DELAY_GRID)
+        padded = np.concatenate([np.full(pad, op[0]), op])
+        taus = np.asarray(LAG_GRID)[:, None]
+        k = np.arange(op.size + 8, dtype=np.float64)
+        with np.errstate(divide="ignore"):
+            rise = np.where(taus > 0, 1.0 - np.exp(-(k + 1.0) / np.where(taus > 0, taus, 1.0)), 1.0)
+        return cls(np.stack([_lagged(padded, tau) for tau in LAG_GRID]), rise, pad)
+
+
+def _slip_evidence(
+    pv: FloatArray,
+    dyn: _Dynamics,
+    s: int,
+    a: int,
+    b: int,
+    toward: float,
+    gain_sign: float,
+    integrating: bool,
+) -> tuple[float, float]:
+    """How well a stuck-then-slipping valve and how well OP explain the PV on [s, b].
+
+    Two local models, each with a straight line for slow load drift and a first-order lag
+    (time constants ``LAG_GRID``): *linear*, the PV follows OP through the process (dead
+    times ``DELAY_GRID``, gain of the controller's sign); *stick-slip*, the valve stands still
+    and steps once, toward the set point, a few samples around OP's turning point ``a``. For a
+    level the valve sets the PV's slope, so both inputs are integrated. Returns the residual
+    sums of squares (linear, stick-slip): this is the "PV changes faster than the loop's own
+    dynamics allow for the OP move" of methods §4.10, read with the dynamics the data allow.
+    """
+    y = pv[s : b + 1]
+    n = y.size
+    k = np.arange(n)
+    # OP delayed by each dead time, through each lag: (delays × lags, n)
+    starts = dyn.pad + s - np.asarray(DELAY_GRID)
+    lin = dyn.op_lags[:, starts[:, None] + k].swapaxes(0, 1).reshape(-1, n)
+    # a valve step a few samples around the turn, through each lag: (offsets × lags, n)
+    since = k[None, :] - np.arange(a - s - 8, a - s + 3, 2)[:, None]
+    rise = dyn.rise[:, np.clip(since, 0, dyn.rise.shape[1] - 1)].swapaxes(0, 1)
+    steps = np.where(since[:, None, :] >= 0, rise, 0.0)
+    steps = steps.reshape(-1, n)
+    if integrating:
+        lin = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
+        steps = np.cumsum(steps, axis=1)
+    return _best_fit(y, lin, gain_sign), _best_fit(y, steps, toward)
+
+
+def _candidate(
+    s: int, a: int, b: int, toward: float, travel: float, sig: _Signals, p: StickSlipParams
+) -> tuple[StickSlipEvent, float, float, float, float] | None:
+    """The stuck phase [s, a] ending at OP's turning point ``a`` and the slip on [a, b], when
+    the slip clears the noise checks; with the slow-fast ratio, slip rate against the stuck
+    drift, PV follow share and OP kick share (see ``StickSlipParams``)."""
+    seg = toward * (sig.ys[a : b + 1] - sig.ys[a])
+    k_slip = int(np.argmax(seg))
+    size = float(seg[k_slip])
+    slope, wander = sig.line(s, a + 1)
+    t_half = max(1, int(np.argmax(seg >= 0.5 * size)))
+    ratio = (a - s) / t_half
+    if size < p.slip_wander * wander or ratio < p.min_stick_slip_ratio:
+        return None
+    rate = 0.5 * size / t_half / max(abs(slope), 1e-300)
+    follow = toward * float(sig.ys[a] - sig.ys[s]) / size
+    kick = abs(float(sig.ops[a] - sig.ops[max(s, a - max(2, t_half))])) / travel
+    # the slip ends where the PV has made 90 % of its move (it may creep on after)
+    end = a + max(1, int(np.argmax(seg >= 0.9 * size)))
+    event = StickSlipEvent(s, a, end, travel, toward * size, strong=False)
+    return event, ratio, rate, follow, kick
+
+
+def _stuck_phases(
+    bounds: IntArray, sig: _Signals, p: StickSlipParams
+) -> list[tuple[int, int, int, float, float]]:
+    """(start, turn, slip end, toward, OP travel) of every stretch between OP's turning points
+    that could end in a slip: long and far enough, an error to correct, and a PV move toward
+    the set point after the turn beyond the noise and the resolution; the largest slips first,
+    ``max_candidates`` at most. Vectorised: a day-long window has thousands of turning points."""
+    s, a, nxt = bounds[:-2], bounds[1:-1], bounds[2:]
+    length = a - s
+    travel = np.abs(sig.ops[a] - sig.ops[s])
+    win = np.maximum(p.min_slip_samples, np.round(p.slip_window_fraction * length)).astype(np.int64)
+    b = np.minimum(np.minimum(nxt, a + win), sig.n - 1)
+    # the slip goes toward the set point: the sign of the error just before the turn
+    lo = np.maximum(s, a - 2 * sig.w)
+    toward = np.sign(sig.cum_e[a + 1] - sig.cum_e[lo])
+    # max and min of ys[a:b+1] per stretch at once (reduceat reads the even positions; the
+    # padded sample keeps the last stop inside the array)
+    padded = np.append(sig.ys, sig.ys[-1])
+    pairs = np.column_stack((a, b + 1)).ravel()
+    up = np.maximum.reduceat(padded, pairs)[::2] - sig.ys[a]
+    down = sig.ys[a] - np.minimum.reduceat(padded, pairs)[::2]
+    size = np.where(toward > 0, up, down)
+    ok = (
+        (length >= p.min_stuck_samples)
+        & (travel >= p.op_travel_sigma * sig.sigma_op)
+        & (b - a >= p.min_slip_samples)
+        & (toward != 0)
+        & (size >= p.slip_sigma * sig.sigma_y)
+        & (size >= p.slip_resolution * sig.res)
+    )
+    keep = np.flatnonzero(ok)
+    keep = keep[np.argsort(-size[keep], kind="stable")][: p.max_candidates]
+    return [(int(s[i]), int(a[i]), int(b[i]), float(toward[i]), float(travel[i])) for i in keep]
+
+
+@dataclass(frozen=True)
+class _Signals:
+    """The window prepared once for every candidate: smoothed OP and PV (or PV slope), their
+    noise σ, the PV resolution, the control error, and running sums that give any stretch's
+    mean error and straight-line fit in constant time."""
+
+    ys: FloatArray
+    ops: FloatArray
+    sigma_y: float
+    sigma_op: float
+    sigma_pv: float
+    res: float
+    w: int
+    n: int
+    cum_e: FloatArray
+    cum_y: FloatArray
+    cum_yy: FloatArray
+    cum_ky: FloatArray
+
+    @classmethod
+    def of(
+        cls, ys: FloatArray, ops: FloatArray, e: FloatArray, w: int, noise: tuple[float, ...]
+    ) -> _Signals:
+        yc = ys - float(np.mean(ys))  # sums of squares without cancellation
+        k = np.arange(ys.size, dtype=np.float64)
+
+        def run(x: FloatArray) -> FloatArray:
+            return np.concatenate(([0.0], np.cumsum(x)))
+
+        sigma_y, sigma_op, sigma_pv, res = noise
+        return cls(
+            ys, ops, sigma_y, sigma_op, sigma_pv, res, w, int(ys.size),
+            run(e), run(yc), run(yc * yc), run(k * yc),
+        )  # fmt: skip
+
+    def mean_e(self, lo: int, hi: int) -> float:
+        """Mean control error over samples [lo, hi)."""
+        return float(self.cum_e[hi] - self.cum_e[lo]) / max(hi - lo, 1)
+
+    def line(self, lo: int, hi: int) -> tuple[float, float]:
+        """Slope (per sample) and residual σ of the straight line through ys[lo:hi]."""
+        m = hi - lo
+        sy = float(self.cum_y[hi] - self.cum_y[lo])
+        syy = float(self.cum_yy[hi] - self.cum_yy[lo])
+        sky = float(self.cum_ky[hi] - self.cum_ky[lo]) - 0.5 * (lo + hi - 1) * sy
+        stt = m * (m * m - 1) / 12.0
+        slope = sky / stt if stt > 0 else 0.0
+        var = (syy - sy * sy / m - slope * sky) / m
+        return slope, math.sqrt(max(var, 0.0))
+
+
+def detect_stick_slip(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray,
+    integrating: bool = False,
+    gain_sign: int = 1,
+    params: StickSlipParams | None = None,
+) -> StickSlipResult:
+    """Find stick-slip events in one window (methods §4.10; Kano et al. 2004 principle).
+
+    Parameters
+    ----------
+    pv, sp:
+        Process variable and set point, engineering units, no NaN.
+    op:
+        Controller output, % (0–100), no NaN.
+    integrating:
+        Level loops: the PV slope stands in for the valve position.
+    gain_sign:
+        Sign of the process gain (+1: PV rises with OP), from the controller's action.
+
+    Events come back as sample indices (any sample time: every threshold is in samples or
+    noise multiples). A *strong* event is one the two-model test confirms (slow or fast loop);
+    a *fast* one shows a jump within a few samples after a long creep of OP with a flat PV but
+    is not confirmed by the model. One strong or two fast events make the verdict ``stiction``.
+    """
+    p = params or StickSlipParams()
+    n = int(pv.size)
+    if n < p.min_samples:
+        test = StictionTestResult(
+            "stick_slip", None, "undecided", f"{n} samples; at least {p.min_samples} are needed"
+        )
+        return StickSlipResult((), test, None, None, None, 0, None)
+    unresponsive = _unresponsive(op, pv, sp, p)
+    if unresponsive is not None:
+        test = StictionTestResult("stick_slip", 1.0, "stiction", unresponsive)
+        return StickSlipResult((), test, None, None, None, 0, unresponsive)
+
+    w = max(1, p.smooth_samples)
+    # a level's slope, per sample, stands in for the valve position of an integrating loop
+    y = np.gradient(moving_average(pv, 2 * w + 1)) if integrating else pv
+    sig = _Signals.of(
+        moving_average(y, w),
+        moving_average(op, w),
+        sp - pv,
+        w,
+        (
+            max(noise_sigma(y) / math.sqrt(w), 1e-12),
+            max(noise_sigma(op) / math.sqrt(w), 1e-12),
+            noise_sigma(pv),
+            0.0 if integrating else _resolution(pv),
+        ),
+    )
+    turns = _turning_points(sig.ops, p.op_turn_sigma * sig.sigma_op)
+    bounds = np.concatenate(([0], turns, [n - 1])).astype(np.int64)
+    phases = _stuck_phases(bounds, sig, p)
+    found = [(c, b) for s, a, b, tw, tr in phases if (c := _candidate(s, a, b, tw, tr, sig, p))]
+    found.sort(key=lambda cb: -abs(cb[0][0].pv_jump))
+    events: list[StickSlipEvent] = []
+    strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
+    noise_var = max(sig.sigma_pv**2, sig.res**2 / 12.0, 1e-300)
+    dyn = _Dynamics.of(op)
+    for k, ((ev, ratio, rate, follow, kick), b) in enumerate(found):
+        fast = (
+            ratio >= p.stick_slip_ratio
+            and rate >= p.slip_rate_ratio
+            and follow <= p.follow_fraction
+            and kick <= p.kick_fraction
+        )
+        strong = False
+        # the two-model test until one event confirms the valve (the verdict needs one),
+        # on the largest slips first
+        if (
+            sum(e.strong for e in events) < strong_needed
+            and k < max(p.max_model_candidates, 3 * strong_needed)
+            and follow <= p.strong_follow_fraction
+        ):
+            toward = 1.0 if ev.pv_jump > 0 else -1.0
+            j = int(np.searchsorted(bounds, ev.breakaway))
+            # the stuck phase may have begun before OP's previous turn (a set-point kick or
+            # noise turns OP without moving the valve): read the evidence from there as well
+            for start in dict.fromkeys((ev.start, int(bounds[max(j - 2, 0)]))):
+                sse_lin, sse_slip = _slip_evidence(
+                    pv, dyn, start, ev.breakaway, b, toward, gain_sign, integrating
+                )
+                if (
+                    sse_lin >= p.evidence_ratio * sse_slip
+                    and (sse_lin - sse_slip) / noise_var >= p.evidence_chi2
+                ):
+                    strong = True
+                    break
+        if strong or fast:
+            events.append(replace(ev, strong=strong))
+        if len(events) >= p.max_events:
+            break
+    events.sort(key=lambda ev: ev.breakaway)
+    return _reading(tuple(events), n, p)
+
+
+def _needed(least: int, per_1000: float, n: int) -> int:
+    """Events needed for a verdict in an ``n``-sample window: every turning point is a chance
+    of an accidental event, so a day-long window needs more than a two-hour one."""
+    return max(least, math.ceil(per_1000 * n / 1000.0))
+
+
+def _reading(events: tuple[StickSlipEvent, ...], n: int, p: StickSlipParams) -> StickSlipResult:
+    """The events as a stiction test: verdict, value (event count) and the size estimates.
+
+    ``min_strong_events`` strong events, or ``min_fast_events`` fast ones, and more in long
+    windows (``*_per_1000`` of the window's ``n`` samples), make ``stiction``; fewer are
+    ``undecided`` (they are still listed). The median OP travel estimates the stickband
+    (Kano et al. 2004), the spread of the travels says how consistent the valve is.
+    """
+    if not events:
+        test = StictionTestResult("stick_slip", 0.0, "undecided", "no stick-slip event")
+        return StickSlipResult((), test, None, None, None, 0, None)
+    travels = np.array([ev.op_travel for ev in events])
+    jumps = np.array([abs(ev.pv_jump) for ev in events])
+    signs = np.sign([ev.pv_jump for ev in events])
+    reversals = int(np.sum(signs[1:] != signs[:-1]))
+    med = float(np.median(travels))
+    spread = float(np.std(travels) / med) if travels.size > 1 and med > 0 else None
+    n_strong = sum(ev.strong for ev in events)
+    strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
+    fast_needed = _needed(p.min_fast_events, p.fast_events_per_1000, n)
+    sticky = n_strong >= strong_needed or len(events) - n_strong >= fast_needed
+    verdict: Verdict = "stiction" if sticky else "undecided"
+    plural = "s" if len(events) > 1 else ""
+    detail = (
+        f"{len(events)} stick-slip event{plural} ({n_strong} confirmed by the valve-step "
+        f"model): OP travel {med:.2f} % at breakaway (median), PV jump "
+        f"{float(np.median(jumps)):.3g}"
+    )
+    if spread is not None:
+        detail += f", travel spread {100 * spread:.0f} %, {reversals} reversal(s)"
+    test = StictionTestResult("stick_slip", float(len(events)), verdict, detail)
+    return StickSlipResult(events, test, med, spread, float(np.median(jumps)), reversals, None)
+
+
+@dataclass(frozen=True)
+class EventSize:
+    """Valve stiction sized from the stick-slip events: S (% of valve travel) from the median
+    OP travel at breakaway, J (% of travel) from the median PV jump through the process gain
+    (None when the gain cannot be read), and whether the events agree well enough to trust it."""
+
+    S: float
+    J: float | None
+    reliable: bool
+    gain: float | None
+    reason: str
+
+
+def process_gain(
+    pv: FloatArray, op: FloatArray, gain_sign: int, min_correlation: float = 0.7
+) -> float | None:
+    """Static process gain (PV units per % OP) from the slow co-movement of PV and OP.
+
+    Both are averaged over a tenth of the window, so that the valve's stickband and the loop's
+    dynamics average out, and PV is regressed on OP. A sticky valve stays within S of OP, so
+    when OP travels far beyond S the slope is the process gain [R]. None when the two do not
+    move together (correlation below ``min_correlation``) or the slope has the wrong sign.
+    """
+    width = max(3, pv.size // 10)
+    u = moving_average(op, width)[:: width // 2 or 1]
+    y = moving_average(pv, width)[:: width // 2 or 1]
+    if u.size < 4 or float(np.std(u)) == 0.0 or float(np.std(y)) == 0.0:
+        return None
+    r = float(np.corrcoef(u, y)[0, 1])
+    if not math.isfinite(r) or r * gain_sign < min_correlation:
+        return None
+    return float(np.polyfit(u, y, 1)[0])
+
+
+def size_from_events(
+    result: StickSlipResult,
+    pv: FloatArray,
+    op: FloatArray,
+    gain_sign: int,
+    max_spread: float = 0.5,
+    min_events: int = 2,
+) -> EventSize | None:
+    """S and J from the events (Kano et al. 2004: the OP travel accumulated while stuck is the
+    stickband), or None without events. ``reliable`` needs ``min_events`` events whose travels
+    spread by at most ``max_spread`` (relative σ) and a readable process gain."""
+    if result.travel_median is None or result.jump_median is None:
+        return None
+    gain = process_gain(pv, op, gain_sign)
+    S = result.travel_median
+    J = min(S, result.jump_median / abs(gain)) if gain else None
+    reasons = []
+    if len(result.events) < min_events:
+        reasons.append(f"{len(result.events)} event(s); {min_events} are needed")
+    if result.travel_spread is not None and result.travel_spread > max_spread:
+        reasons.append(f"OP travels at breakaway spread by {100 * result.travel_spread:.0f} %")
+    if gain is None:
+        reasons.append("process gain not readable: J unknown")
+    return EventSize(S, J, not reasons, gain, "; ".join(reasons))
