@@ -18,7 +18,14 @@ import numpy as np
 from scipy.optimize import brentq
 
 from plantcheck.simulator.actuator import ActuatorSpec
-from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process
+from plantcheck.simulator.loop import (
+    Disturbance,
+    FloatArray,
+    LoopConfig,
+    PIController,
+    Process,
+    simulate_loop,
+)
 
 PROCESSES: dict[str, tuple[str, Process]] = {
     "flow": ("flow", Process("fopdt", K=1.0, tau_s=2.0, theta_s=1.0)),
@@ -206,6 +213,116 @@ def generate_cases(
                             **common,  # type: ignore[arg-type]
                         ),
                     )
+
+
+SHORT_WINDOW_SAMPLES = 720
+"""Two hours at 10 s: the window real plants give (refinery-stiction-dev)."""
+
+
+def _short_window_loop(rng: np.random.Generator) -> tuple[str, Process]:
+    """A slow loop as plants have them: self-regulating with τ 40–300 s (flow through a slow
+    valve and line, pressure, temperature) or a level with its integrating dynamics."""
+    if rng.uniform() < 0.2:
+        return "level", Process("integrating", K=float(rng.uniform(0.002, 0.01)), theta_s=10.0)
+    tau = float(rng.uniform(40.0, 300.0))
+    theta = float(rng.uniform(0.05, 0.3)) * tau
+    kind = str(rng.choice(["flow", "pressure", "temperature"]))
+    return kind, Process("fopdt", K=float(rng.uniform(0.5, 2.0)), tau_s=tau, theta_s=theta)
+
+
+def valve_breakaways(mv: FloatArray, min_jump: float, min_stuck: int = 3) -> int:
+    """Stick-slip events of a simulated valve: moves of at least ``min_jump`` (% of travel)
+    out of a rest of at least ``min_stuck`` samples (the true count, from the stem position)."""
+    moved = np.abs(np.diff(mv)) > 1e-9
+    count = 0
+    rest = 0
+    for k in range(moved.size):
+        if moved[k]:
+            if rest >= min_stuck and abs(mv[k + 1] - mv[k]) >= min_jump:
+                count += 1
+            rest = 0
+        else:
+            rest += 1
+    return count
+
+
+def generate_short_window_cases(
+    seed: int = 1, per_cell: int = 4, max_tries: int = 30
+) -> Iterator[Case]:
+    """Two-hour windows at 10 s of slow loops, sticky and healthy, as real plants give them.
+
+    The family issue 24 asks for: slow processes (τ 40–300 s, or a level), SIMC PI tuning
+    detuned (gain / 1–3, integral time × 2–8: plants run conservative loops, and a sticky valve
+    under a slow integral shows few events rather than a limit cycle), zero to three set-point
+    steps, slowly drifting loads with an occasional step, PV noise σ 0.05–0.5 % of span and a
+    recorded PV that is continuous, quantised or historian-compressed. A sticky case has a Kano
+    or He valve with S 1–6 % and J/S 0.5–1 (real sticky valves slip by most of their stickband)
+    and shows one to three stick-slip events in the window, counted on the simulated stem
+    position, each moving the PV by at least 4 × its noise and recording step (the events an
+    engineer sees on the trend); cases that miss either are drawn again, up to ``max_tries``
+    times. Each sticky case has a healthy twin: the same process, tuning, noise, set-point
+    steps, loads and recording, with a linear valve.
+    """
+    rng = np.random.default_rng(seed)
+    ts = 10.0
+    n = SHORT_WINDOW_SAMPLES
+    dur = n * ts
+    for noise in (0.05, 0.2, 0.5):
+        for recording in ("continuous", "quantised", "compressed"):
+            for rep in range(per_cell):
+                for _ in range(max_tries):
+                    loop_type, proc = _short_window_loop(rng)
+                    pi = simc_pi(proc)
+                    pi = replace(
+                        pi,
+                        Kc=pi.Kc / float(rng.uniform(1.0, 3.0)),
+                        Ti_s=pi.Ti_s * float(rng.uniform(2.0, 8.0)),
+                    )
+                    n_steps = int(rng.integers(0, 4))
+                    times = np.sort(rng.uniform(0.1, 0.9, n_steps)) * dur
+                    sizes = rng.choice([-1.0, 1.0], n_steps) * rng.uniform(1.0, 5.0, n_steps)
+                    sp_steps = tuple(
+                        (float(t), 50.0 + float(v))
+                        for t, v in zip(times, np.cumsum(sizes), strict=True)
+                    )
+                    loads = (
+                        Disturbance(random_walk_std=float(rng.uniform(0.002, 0.01))),
+                        _random_loads(rng, dur, dur / 2.0, 1.0),
+                    )
+                    quantum = (
+                        float(rng.uniform(1.0, 3.0)) * noise if recording == "quantised" else 0.0
+                    )
+                    compression = (
+                        float(rng.uniform(1.0, 3.0)) * noise if recording == "compressed" else 0.0
+                    )
+                    S = float(rng.choice([1.0, 2.0, 3.0, 4.0, 6.0]))
+                    J = round(S * float(rng.uniform(0.5, 1.0)), 2)
+                    valve = "kano" if rng.uniform() < 0.5 else "he"
+                    common: dict[str, object] = dict(
+                        process=proc,
+                        controller=pi,
+                        sample_time_s=ts,
+                        n_samples=n,
+                        warmup_samples=200,
+                        noise_std=noise,
+                        sp_steps=sp_steps,
+                        disturbances=loads,
+                        pv_quantum=quantum,
+                        pv_compression=compression,
+                        seed=int(rng.integers(1 << 30)),
+                    )
+                    sticky = LoopConfig(valve=valve, S=S, J=J, **common)  # type: ignore[arg-type]
+                    events = valve_breakaways(simulate_loop(sticky).mv, 0.5 * J)
+                    # a slip an engineer can see on the trend: the PV move it causes (over
+                    # 20 samples for a level) stands 4 × above the noise and the recording step
+                    slip = proc.K * J * (20.0 * ts if proc.kind == "integrating" else 1.0)
+                    visible = slip >= 4.0 * max(noise, quantum, compression)
+                    if 1 <= events <= 3 and visible:
+                        break
+                tag = f"{loop_type}-steps{n_steps}-noise{noise}-{recording}-r{rep}"
+                yield Case(f"stiction-{valve}-S{S:g}-J{J:g}-events{events}-{tag}", "stiction",
+                           loop_type, sticky)  # fmt: skip
+                yield Case(f"ok-{tag}", "ok", loop_type, LoopConfig(**common))  # type: ignore[arg-type]
 
 
 def sticky_flow_config(n_samples: int = 3600, seed: int = 3) -> LoopConfig:

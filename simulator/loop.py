@@ -93,6 +93,12 @@ class LoopConfig:
     """Positioner and actuator fault between OP and the stem; None: the stem is the valve."""
     mv_noise_std: float = 0.0
     """Measurement noise of the stem position sensor, % of travel."""
+    pv_quantum: float = 0.0
+    """Resolution of the recorded PV (transmitter or historian steps), % of span; 0: none."""
+    pv_compression: float = 0.0
+    """Historian compression deadband of the recorded PV, % of span: a value is stored only
+    when it differs from the last stored one by more than this (the record holds the last
+    stored value); 0: none. The controller sees the uncompressed PV."""
 
 
 @dataclass(frozen=True)
@@ -214,6 +220,19 @@ class ClosedLoop:
         return pv_meas, u, m
 
 
+def recorded_pv(pv: FloatArray, quantum: float = 0.0, compression: float = 0.0) -> FloatArray:
+    """The PV as a historian returns it: rounded to ``quantum`` and held while it stays within
+    ``compression`` of the last stored value (deadband compression), both % of span."""
+    out = np.round(pv / quantum) * quantum if quantum > 0 else pv.copy()
+    if compression > 0 and out.size:
+        held = out[0]
+        for k in range(out.size):
+            if abs(out[k] - held) > compression:
+                held = out[k]
+            out[k] = held
+    return out
+
+
 def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     """Simulate one closed loop and return the last ``n_samples`` samples after warm-up."""
     rng = np.random.default_rng(cfg.seed)
@@ -245,7 +264,7 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     return LoopRecord(
         t=t[keep] - t[cfg.warmup_samples],
         sp=sp[keep],
-        pv=pv[keep],
+        pv=recorded_pv(pv[keep], cfg.pv_quantum, cfg.pv_compression),
         op=op[keep],
         mv=mv[keep],
     )
