@@ -29,6 +29,7 @@ def loop_json(s: LoopStatus) -> dict[str, Any]:
         "last_diagnosis_at": iso(s.last_diagnosis_us),
         "S": s.S,
         "J": s.J,
+        "S_method": s.S_method,
     }
 
 

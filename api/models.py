@@ -22,6 +22,11 @@ class LoopOut(BaseModel):
     last_diagnosis_at: str | None
     S: float | None = Field(description="Latest stiction estimate, % of valve travel.")
     J: float | None = Field(description="Latest slip jump estimate, % of valve travel.")
+    S_method: str | None = Field(
+        None,
+        description="How S and J were estimated (hammerstein, measured, events, ellipse): the "
+        "latest reliable estimate of the most direct method the valve has.",
+    )
 
 
 class LoopDetail(LoopOut):
@@ -71,6 +76,12 @@ class StictionPoint(BaseModel):
     S: float = Field(description="% of valve travel.")
     J: float | None
     source: Literal["op_pv", "mv"] = Field(description="From OP/PV or from the stem position.")
+    method: Literal["hammerstein", "events", "ellipse", "measured"] = Field(
+        "hammerstein",
+        description="How S was estimated: Hammerstein identification, stick-slip events, "
+        "PV(OP) ellipse (apparent stiction), or measured from the stem position.",
+    )
+    reliable: bool = Field(True, description="The estimate passed its method's rules.")
 
 
 class WeekOut(BaseModel):
@@ -91,6 +102,11 @@ class ValveReport(BaseModel):
     above_limit: bool
     projected_crossing: str | None = Field(description="When S is projected to pass the limit.")
     note: str
+    trend_method: str | None = Field(
+        None,
+        description="The one method whose reliable estimates make the trend, the weekly "
+        "medians and the current S (methods are never mixed); null without any estimate.",
+    )
     weeks: list[WeekOut]
     estimates: list[StictionPoint]
 

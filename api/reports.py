@@ -1,9 +1,10 @@
 """``GET /api/v1/reports/stiction``: per valve, S and J over time, the weekly medians, the
 robust trend and the date S is projected to pass the valve's limit.
 
-The estimates were made by the scheduler (the diagnosis chain's reliable S, J); this route only
-summarises them: weekly medians and the Theil–Sen line of ``diagnosis.stiction_trend``
-(Bacci di Capaci & Scali 2014), over the requested period.
+The estimates were made by the scheduler (the diagnosis chain's best S, J with its method);
+this route only summarises them: weekly medians and the Theil–Sen line of
+``diagnosis.stiction_trend`` (Bacci di Capaci & Scali 2014) over the requested period, from one
+method per valve (a Hammerstein S and an apparent stiction are not the same quantity).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from fastapi import APIRouter, Depends, Query, Response
 from plantcheck.api.deps import Backend, TimeRange, iso, iso_required, require_read_key
 from plantcheck.api.models import StictionPoint, StictionReport, ValveReport, WeekOut
 from plantcheck.diagnosis.stiction_trend import TrendParams, stiction_trend
-from plantcheck.storage.results import stiction_history
+from plantcheck.storage.results import METHOD_RANK, StoredEstimate, stiction_history
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
@@ -45,15 +46,37 @@ def _weeks(at: np.ndarray, S: np.ndarray, J: np.ndarray) -> list[WeekOut]:
     return out
 
 
-def valve_report(
-    loop: str, rows: list[tuple[int, float, float | None, str]], limit: float
-) -> ValveReport:
-    """One valve's report from its (at_us, S, J, source) estimates."""
-    at = np.array([r[0] for r in rows], dtype=np.int64)
-    S = np.array([r[1] for r in rows], dtype=np.float64)
-    J = np.array([np.nan if r[2] is None else r[2] for r in rows], dtype=np.float64)
-    tr = stiction_trend(at / 1e6, S, J, np.ones(at.size, bool), TrendParams(limit=limit))
+def trend_method(rows: list[StoredEstimate], min_estimates: int) -> str | None:
+    """The method a valve's trend is read from: the most direct one with ``min_estimates``
+    reliable estimates, else the most direct one with any reliable estimate, else the most
+    direct one present (whose unreliable points then give no trend)."""
+    present = [m for m in METHOD_RANK if any(r.method == m for r in rows)]
+    for enough in (min_estimates, 1):
+        for m in present:
+            if sum(r.method == m and r.reliable for r in rows) >= enough:
+                return m
+    return present[0] if present else None
+
+
+def valve_report(loop: str, rows: list[StoredEstimate], limit: float) -> ValveReport:
+    """One valve's report from its estimates: the trend, weekly medians and current S come
+    from one method (``trend_method``); every estimate is listed with its method."""
+    params = TrendParams(limit=limit)
+    method = trend_method(rows, params.min_estimates)
+    used = [r for r in rows if r.method == method]
+    at = np.array([r.at_us for r in used], dtype=np.int64)
+    S = np.array([r.S for r in used], dtype=np.float64)
+    J = np.array([np.nan if r.J is None else r.J for r in used], dtype=np.float64)
+    ok = np.array([r.reliable for r in used], dtype=bool)
+    tr = stiction_trend(at / 1e6, S, J, ok, params)
     crossing = tr.projected_crossing_s
+    note = tr.note
+    others = len(rows) - int(ok.sum())
+    if method is not None and others:
+        note += (
+            f" (from {int(ok.sum())} reliable {method} estimates; {others} other "
+            "estimates listed, not in the trend)"
+        )
     return ValveReport(
         loop=loop,
         limit=limit,
@@ -62,10 +85,19 @@ def valve_report(
         slope_per_week=tr.slope_per_week,
         above_limit=tr.above_limit,
         projected_crossing=iso(int(crossing * 1e6)) if crossing is not None else None,
-        note=tr.note,
-        weeks=_weeks(at, S, J),
+        note=note,
+        trend_method=method,
+        weeks=_weeks(at[ok], S[ok], J[ok]),
         estimates=[
-            StictionPoint(time=iso_required(a), S=s, J=j, source=src) for a, s, j, src in rows
+            StictionPoint(
+                time=iso_required(r.at_us),
+                S=r.S,
+                J=r.J,
+                source=r.source,
+                method=r.method,
+                reliable=r.reliable,
+            )
+            for r in rows
         ],
     )
 
@@ -80,6 +112,8 @@ CSV_COLUMNS = (
     "current_S",
     "slope_per_week",
     "projected_crossing",
+    "method",
+    "reliable",
 )
 
 
@@ -101,6 +135,8 @@ def report_csv(report: StictionReport) -> str:
                     "" if v.current_S is None else round(v.current_S, 3),
                     "" if v.slope_per_week is None else round(v.slope_per_week, 4),
                     v.projected_crossing or "",
+                    e.method,
+                    "true" if e.reliable else "false",
                 ]
             )
     return buf.getvalue()

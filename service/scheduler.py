@@ -51,6 +51,26 @@ QUANTIFIED_CAUSES = frozenset({"stiction", "deadband_backlash"})
 """Causes whose diagnosis carries an S (and J) estimate for the stiction report."""
 
 
+def stored_estimate(payload: dict[str, Any]) -> tuple[float, float | None, str, bool] | None:
+    """The stiction size a diagnosis leaves for the trend report: (S, J, method, reliable).
+
+    ``stiction.S``/``J`` (the reliable Hammerstein estimate, or the stem position's measure in
+    the advanced chain: method ``measured``) first; else the chain's best other size,
+    ``stiction.estimate`` (stick-slip events or the PV(OP) ellipse), with its method and
+    reliability, so that maintenance planners get a size for every sticky valve and the report
+    can keep the methods apart.
+    """
+    stiction = payload.get("stiction") or {}
+    J = stiction.get("J")
+    if stiction.get("S") is not None:
+        measured = (payload.get("valve") or {}).get("state") in QUANTIFIED_CAUSES
+        return float(stiction["S"]), J, "measured" if measured else "hammerstein", True
+    est = stiction.get("estimate") or {}
+    if est.get("S") is None:
+        return None
+    return float(est["S"]), est.get("J"), str(est.get("method")), bool(est.get("reliable"))
+
+
 @dataclass(frozen=True)
 class LoopSchedule:
     """When and over what window one loop is diagnosed (seconds)."""
@@ -275,11 +295,9 @@ class DiagnosisScheduler:
         self, row: LoopRow, payload: dict[str, Any], start_us: int, end_us: int, now_us: int
     ) -> None:
         cause = str(payload["cause"])
-        stiction = payload.get("stiction") or {}
-        S = stiction.get("S") if cause in QUANTIFIED_CAUSES else None
-        J = stiction.get("J") if S is not None else None
-        valve = payload.get("valve") or {}
-        action = (payload.get("actions") or [action_for(cause, S, J)])[0]
+        estimate = stored_estimate(payload) if cause in QUANTIFIED_CAUSES else None
+        S, J, method, reliable = estimate or (None, None, "hammerstein", True)
+        action = (payload.get("actions") or [action_for(cause, S, J, method)])[0]
         verdict = Verdict(
             loop=row,
             created_us=now_us,
@@ -293,7 +311,9 @@ class DiagnosisScheduler:
             priority=priority_of(cause),
             S=None if S is None else float(S),
             J=None if J is None else float(J),
-            stiction_source="mv" if valve.get("state") in QUANTIFIED_CAUSES else "op_pv",
+            stiction_source="mv" if method == "measured" else "op_pv",
+            stiction_method=method,
+            stiction_reliable=reliable,
         )
         st = self.state[row.name]
         if cause == st.last_cause:

@@ -36,6 +36,10 @@ class Verdict:
     S: float | None = None
     J: float | None = None
     stiction_source: str = "op_pv"
+    stiction_method: str = "hammerstein"
+    """How S was estimated: ``hammerstein``, ``events``, ``ellipse`` (contracts §2) or
+    ``measured`` (from the stem position)."""
+    stiction_reliable: bool = True
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,7 @@ class LoopStatus:
     last_diagnosis_us: int | None
     S: float | None
     J: float | None
+    S_method: str | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,8 @@ async def record_verdicts(store: Store, batch: Sequence[PendingVerdict]) -> list
                         "S": v.S,
                         "J": v.J,
                         "source": v.stiction_source,
+                        "method": v.stiction_method,
+                        "reliable": v.stiction_reliable,
                     }
                     for v in estimates
                 ],
@@ -193,22 +200,40 @@ async def _adopt(conn: AsyncConnection, batch: Sequence[PendingVerdict]) -> None
         )
 
 
+METHOD_RANK = ("measured", "hammerstein", "events", "ellipse")
+"""Stiction estimate methods from the most to the least direct measure of S."""
+
+
 async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatus]:
-    """The loop-health table (one loop with ``name``), with each valve's latest S and J."""
+    """The loop-health table (one loop with ``name``), with each valve's latest reliable S and
+    J of the most direct method it has (``METHOD_RANK``): a valve quantified by identification
+    now and then keeps that S between identifications rather than flipping to another method's.
+    """
     q = select(loops).order_by(loops.c.name)
-    latest = select(func.max(stiction_estimates.c.id)).group_by(stiction_estimates.c.loop_id)
+    latest = (
+        select(func.max(stiction_estimates.c.id))
+        .where(stiction_estimates.c.reliable.is_(True))
+        .group_by(stiction_estimates.c.loop_id, stiction_estimates.c.method)
+    )
     if name is not None:
         q = q.where(loops.c.name == name)
         latest = latest.where(
             stiction_estimates.c.loop_id.in_(select(loops.c.id).where(loops.c.name == name))
         )
     est_q = select(
-        stiction_estimates.c.loop_id, stiction_estimates.c.S, stiction_estimates.c.J
+        stiction_estimates.c.loop_id,
+        stiction_estimates.c.S,
+        stiction_estimates.c.J,
+        stiction_estimates.c.method,
     ).where(stiction_estimates.c.id.in_(latest.scalar_subquery()))
+    est: dict[int, tuple[float | None, float | None, str | None]] = {}
     async with store.engine.connect() as conn:
         rows = (await conn.execute(q)).all()
-        est = {r[0]: (r[1], r[2]) for r in (await conn.execute(est_q)).all()}
-    none: tuple[float | None, float | None] = (None, None)
+        for loop_id, S, J, method in (await conn.execute(est_q)).all():
+            have = est.get(loop_id)
+            if have is None or _rank(method) < _rank(have[2]):
+                est[loop_id] = (S, J, method)
+    none: tuple[float | None, float | None, str | None] = (None, None, None)
     return [
         LoopStatus(
             r.name,
@@ -223,6 +248,10 @@ async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatu
         )
         for r in rows
     ]
+
+
+def _rank(method: str | None) -> int:
+    return METHOD_RANK.index(method) if method in METHOD_RANK else len(METHOD_RANK)
 
 
 def _between(col: Any, start_us: int | None, end_us: int | None) -> list[ColumnElement[bool]]:
@@ -274,10 +303,23 @@ async def active_actions(store: Store) -> list[dict[str, Any]]:
         return [r._asdict() for r in (await conn.execute(q)).all()]
 
 
+@dataclass(frozen=True)
+class StoredEstimate:
+    """One stored stiction estimate: time (µs), S and J (% of travel), where it came from
+    (``op_pv`` or ``mv``), its method and whether it passed its method's rules."""
+
+    at_us: int
+    S: float
+    J: float | None
+    source: str
+    method: str
+    reliable: bool
+
+
 async def stiction_history(
     store: Store, start_us: int | None = None, end_us: int | None = None
-) -> dict[str, list[tuple[int, float, float | None, str]]]:
-    """Per loop name: (at_us, S, J, source) of its stiction estimates, oldest first."""
+) -> dict[str, list[StoredEstimate]]:
+    """Per loop name: its stiction estimates, oldest first."""
     q = (
         select(
             loops.c.name,
@@ -285,15 +327,18 @@ async def stiction_history(
             stiction_estimates.c.S,
             stiction_estimates.c.J,
             stiction_estimates.c.source,
+            stiction_estimates.c.method,
+            stiction_estimates.c.reliable,
         )
         .join(loops, loops.c.id == stiction_estimates.c.loop_id)
         .where(*_between(stiction_estimates.c.at_us, start_us, end_us))
         .order_by(loops.c.name, stiction_estimates.c.at_us)
     )
-    out: dict[str, list[tuple[int, float, float | None, str]]] = {}
+    out: dict[str, list[StoredEstimate]] = {}
     async with store.engine.connect() as conn:
         for r in (await conn.execute(q)).all():
-            out.setdefault(r.name, []).append((r.at_us, r.S, r.J, r.source))
+            est = StoredEstimate(r.at_us, r.S, r.J, r.source, r.method, bool(r.reliable))
+            out.setdefault(r.name, []).append(est)
     return out
 
 

@@ -21,6 +21,7 @@ from sqlalchemy import (
     Table,
     Text,
     UniqueConstraint,
+    true,
 )
 
 metadata = MetaData()
@@ -94,6 +95,10 @@ stiction_estimates = Table(
     Column("S", Float, nullable=False),
     Column("J", Float, nullable=True),
     Column("source", String(16), nullable=False, default="op_pv"),
+    # how S was estimated (contracts §2 stiction.estimate.method, or "measured" from MV) and
+    # whether the estimate passed its rules: the trend report never mixes methods silently
+    Column("method", String(16), nullable=False, server_default="hammerstein"),
+    Column("reliable", Boolean, nullable=False, server_default=true()),
     Index("ix_stiction_loop_time", "loop_id", "at_us"),
 )
 

@@ -103,14 +103,18 @@ const plantcheck = (() => {
     canvas.dataset.points = String(pts.length);
   }
 
-  /* One valve's S over time, its limit, and the projection to the limit (uPlot). */
+  /* One valve's S over time, its limit, and the projection to the limit (uPlot). The trend's
+     method (its reliable estimates) is drawn filled; other methods and unreliable estimates as
+     open marks of their own series, so that methods are never mixed silently. */
   function stiction(el, v) {
-    const est = v.estimates.map((e) => [Date.parse(e.time) / 1000, e.S]);
+    const est = v.estimates.map((e) => [Date.parse(e.time) / 1000, e.S,
+      e.method === v.trend_method && e.reliable !== false]);
     if (!est.length) return null;
     const cross = v.projected_crossing ? Date.parse(v.projected_crossing) / 1000 : null;
     const t = est.map((e) => e[0]);
     if (cross !== null && cross > t[t.length - 1]) t.push(cross);
-    const S = t.map((_, i) => (i < est.length ? est[i][1] : null));
+    const S = t.map((_, i) => (i < est.length && est[i][2] ? est[i][1] : null));
+    const other = t.map((_, i) => (i < est.length && !est[i][2] ? est[i][1] : null));
     const limit = t.map(() => v.limit);
     const proj = t.map(() => null);
     if (cross !== null && t.length > est.length) {
@@ -120,10 +124,11 @@ const plantcheck = (() => {
       title: `${v.loop}: S (% of travel)`, width: width(el), height: 220,
       scales: { x: { time: true } },
       series: [{},
-        { label: "S", stroke: "#c62828", width: 0, paths: () => null, points: { show: true, size: 6, fill: "#c62828" } },
+        { label: `S (${v.trend_method || "none"})`, stroke: "#c62828", width: 0, paths: () => null, points: { show: true, size: 6, fill: "#c62828" } },
         { label: "limit", stroke: "#555", dash: [6, 4] },
-        { label: "projection", stroke: "#ef6c00", dash: [2, 3], spanGaps: true }],
-    }, [t, S, limit, proj], el);
+        { label: "projection", stroke: "#ef6c00", dash: [2, 3], spanGaps: true },
+        { label: "other methods, not in the trend", stroke: "#6a1b9a", width: 0, paths: () => null, points: { show: true, size: 6, fill: "#fff" } }],
+    }, [t, S, limit, proj, other], el);
     el.dataset.rendered = "true";
     return u;
   }
