@@ -106,6 +106,16 @@ def _summary(d: Diagnosis) -> str:
         lines.append(
             f"stiction:    {'detected' if d.stiction['detected'] else 'not detected'} ({shown})"
         )
+    for ev in d.stiction.get("events") or []:
+        lines.append(
+            f"event:       stuck from {ev['start']:.0f} s, slipped by {ev['end']:.0f} s: "
+            f"OP travel {ev['op_travel']:.2f} %, PV jump {ev['pv_jump']:+.3g}"
+        )
+    est = d.stiction.get("estimate")
+    if est and est.get("S") is not None:
+        j = f", J = {est['J']:.2f} %" if est.get("J") is not None else ""
+        sure = "reliable" if est.get("reliable") else "not reliable"
+        lines.append(f"size:        S = {est['S']:.2f} %{j} ({est['method']}, {sure})")
     if d.valve is not None:
         lines.append(f"valve:       {d.valve['state']} (advanced chain, from MV)")
     for a in d.actions:

@@ -74,7 +74,7 @@ def test_batched_verdicts(db_url: str) -> None:
             assert "9.0" in acts["L1"]["text"] and acts["L1"]["since_us"] == T0
             total, _ = await diagnosis_history(store, rows["L0"])
             assert total == 2
-            assert [e[1] for e in (await stiction_history(store))["L1"]] == [3.0, 9.0]
+            assert [e.S for e in (await stiction_history(store))["L1"]] == [3.0, 9.0]
         finally:
             await writer.close()
             await store.close()

@@ -1,0 +1,72 @@
+"""Stiction on the windows real plants give: two hours at 10 s of slow loops (issue 24).
+
+The family ``simulator.cases.generate_short_window_cases``: τ 40–300 s or a level, detuned PI,
+0–3 set-point steps, drifting loads, three noise levels, continuous / quantised / compressed
+PV; sticky valves with one to three stick-slip events and their healthy twins. Prints, per
+noise level and recording, the stiction recall and the false alarms on the healthy twins, then
+how many detected sticky windows got a size (``stiction.estimate``) and its error per method.
+
+    python benchmarks/short_window_accuracy.py [--seeds 1 2] [--per-cell 4] [-v]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import statistics
+import time
+
+from plantcheck.diagnosis import diagnose
+from plantcheck.simulator.cases import generate_short_window_cases
+from plantcheck.simulator.loop import simulate_loop
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--per-cell", type=int, default=4)
+    ap.add_argument("-v", "--verbose", action="store_true", help="list every wrong window")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    found: collections.Counter[tuple[str, str, bool]] = collections.Counter()
+    errors: dict[str, list[float]] = collections.defaultdict(list)
+    sized = detected = 0
+    for seed in args.seeds:
+        for c in generate_short_window_cases(seed=seed, per_cell=args.per_cell):
+            r = simulate_loop(c.config)
+            d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type)
+            cell = c.name.split("-noise")[1].split("-r")[0]  # e.g. "0.2-quantised"
+            hit = d.cause == "stiction"
+            found[(c.cause, cell, hit)] += 1
+            if args.verbose and hit != (c.cause == "stiction"):
+                print(f"  {c.name:75s} -> {d.cause:22s} {d.notes[-1][:60] if d.notes else ''}")
+            if c.cause == "stiction" and hit:
+                detected += 1
+                est = d.stiction.get("estimate") or {}
+                if est.get("S") is not None:
+                    sized += 1
+                    errors[str(est["method"])].append(abs(float(est["S"]) - c.config.S))
+    cells = sorted({cell for _, cell, _ in found})
+    print(f"short-window family: seeds {args.seeds}, {time.perf_counter() - t0:.0f} s")
+    print(f"{'noise-recording':22s} {'recall':>12s} {'false alarms':>14s}")
+    totals = collections.Counter()
+    for cell in cells:
+        tp, fn = found[("stiction", cell, True)], found[("stiction", cell, False)]
+        fp, tn = found[("ok", cell, True)], found[("ok", cell, False)]
+        totals.update({"tp": tp, "fn": fn, "fp": fp, "tn": tn})
+        print(f"{cell:22s} {tp:5d}/{tp + fn:<6d} {fp:7d}/{fp + tn:<6d}")
+    tp, fn, fp, tn = totals["tp"], totals["fn"], totals["fp"], totals["tn"]
+    print(
+        f"{'all':22s} {tp:5d}/{tp + fn:<6d} {fp:7d}/{fp + tn:<6d}  "
+        f"recall {tp / max(tp + fn, 1):.2f}, false alarms {fp / max(fp + tn, 1):.1%}"
+    )
+    print(f"sized: {sized} of {detected} detected sticky windows ({sized / max(detected, 1):.0%})")
+    for method, errs in sorted(errors.items()):
+        print(
+            f"  {method:12s} {len(errs):3d} estimates, median |S error| "
+            f"{statistics.median(errs):.2f} % of travel"
+        )
+
+
+if __name__ == "__main__":
+    main()
