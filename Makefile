@@ -5,13 +5,18 @@ BIN    := $(VENV)/bin
 
 .PHONY: test venv lint typecheck pytest demo clean system-deps
 
-$(BIN)/plantcheck: pyproject.toml
-	$(PYTHON) -m venv $(VENV)
+# The stamp, not the plantcheck script, says the development install is done: README command
+# 1 makes .venv with a plain `pip install .` (no ruff, mypy, pytest), and `make test` run after
+# it must still install them into that venv.
+STAMP  := $(VENV)/.plantcheck-dev
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $@
 
-venv: $(BIN)/plantcheck
+venv: $(STAMP)
 
 lint: venv
 	$(BIN)/ruff check .
