@@ -18,6 +18,7 @@ import typer
 
 from plantcheck import __version__
 from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagnose_advanced
+from plantcheck.diagnosis.oscillation import SPECTRAL
 from plantcheck.diagnosis.result import json_safe
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_run import demo_cmd, run_cmd
@@ -179,7 +180,8 @@ def oscillation_cmd(
         typer.Option("--max-samples", min=100, help="Test at most the last N samples."),
     ] = DEFAULT_MAX_SAMPLES,
 ) -> None:
-    """Test one signal for a sustained oscillation (Hägglund + Thornhill)."""
+    """Test one signal for a sustained oscillation (Hägglund + Thornhill, then the band-passed
+    strongest spectral peak for irregular, multiple and slow oscillations)."""
     name = column.strip().lower()
     if name not in ("sp", "pv", "op", "mv"):
         raise fail(f"--column must be one of sp, pv, op, mv, not {column!r}")
@@ -204,7 +206,7 @@ def oscillation_cmd(
         if not ok.all():
             x = np.interp(np.arange(x.size), np.flatnonzero(ok), x[ok])
             notes.append(f"{int((~ok).sum())} missing samples interpolated")
-        res = detect_oscillation(x, rec.sample_time_s)
+        res = detect_oscillation(x, rec.sample_time_s, SPECTRAL)
         out.update(
             oscillating=res.oscillating,
             period_s=res.period_s if res.oscillating else None,
