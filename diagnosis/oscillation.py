@@ -329,10 +329,10 @@ def spectral_oscillation(
     if cand.size == 0:
         return None
     ratios = np.empty(cand.size)
-    for k, i in enumerate(cand):
-        idx = np.arange(max(1, i // 2), min(power.size, 2 * i + 1))
-        ring = idx[(idx < 0.8 * i) | (idx > 1.25 * i)]
-        ratios[k] = smooth[i] / float(np.median(smooth[ring])) if ring.size else 0.0
+    for k, c in enumerate(cand.tolist()):
+        idx = np.arange(max(1, c // 2), min(int(power.size), 2 * c + 1))
+        ring = idx[(idx < 0.8 * c) | (idx > 1.25 * c)]
+        ratios[k] = smooth[c] / float(np.median(smooth[ring])) if ring.size else 0.0
     best = int(np.argmax(smooth[cand] * np.minimum(ratios, 50.0)))
     i, ratio = int(cand[best]), float(ratios[best])
     f0 = float(f[i])
