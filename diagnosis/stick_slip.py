@@ -21,7 +21,7 @@ resolution [R, calibrated on the labelled refinery records and the generated sho
 family, ``simulator.cases.generate_short_window_cases``].
 
 A second, degenerate signature is a valve that does not respond at all: OP travels through many
-% toward the set point while the PV stays flat at its value (``unresponsive_valve``).
+% while the control error keeps its sign and the PV stays flat (``_unresponsive``).
 """
 
 from __future__ import annotations
@@ -67,10 +67,6 @@ class StickSlipParams:
     evidence_ratio: float = 5.0
     """Slow loops: the stick-slip model's residual is at most 1/this of the linear one's ..."""
     evidence_chi2: float = 300.0
-    strong_follow_fraction: float = 9.0
-    """... and the PV moved toward the set point during the stuck phase by at most this share
-    of the slip (a stuck valve holds the PV; a load change toward the set point does not wait
-    for one)."""
     """... and the residual it removes is at least this many noise variances."""
     stick_slip_ratio: float = 20.0
     """Fast loops: the stuck phase lasts at least this many times the slip's half-time (a
@@ -183,8 +179,8 @@ def _turning_points(x: FloatArray, prominence: float) -> IntArray:
 def _unresponsive(
     op: FloatArray, pv: FloatArray, sp: FloatArray, params: StickSlipParams
 ) -> str | None:
-    """A valve that does not respond: OP travels through ``unresponsive_travel`` % toward
-    correcting a persistent error while the PV stays flat. Returns the note, or None."""
+    """A valve that does not respond: OP travels through ``unresponsive_travel`` % while the
+    control error keeps its sign and the PV stays flat. Returns the note, or None."""
     travel = float(op[-1] - op[0])
     e = sp - pv
     if abs(travel) < params.unresponsive_travel:
@@ -479,10 +475,8 @@ def detect_stick_slip(
         strong = False
         # the two-model test until one event confirms the valve (the verdict needs one),
         # on the largest slips first
-        if (
-            sum(e.strong for e in events) < strong_needed
-            and k < max(p.max_model_candidates, 3 * strong_needed)
-            and follow <= p.strong_follow_fraction
+        if sum(e.strong for e in events) < strong_needed and k < max(
+            p.max_model_candidates, 3 * strong_needed
         ):
             toward = 1.0 if ev.pv_jump > 0 else -1.0
             j = int(np.searchsorted(bounds, ev.breakaway))
