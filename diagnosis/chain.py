@@ -57,7 +57,6 @@ from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
     BoolArray,
     WindowParams,
-    WindowReport,
     check_window,
     fill_short_gaps,
 )
@@ -186,8 +185,14 @@ def diagnose(
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
     events = None
+    pi_window = None
     if win.verdict is None or win.sp_limited:
-        events, gain_sign = _stick_slip_events(win, loop_type, ts, p)
+        # the controller identified on the whole window gives the process gain's sign
+        pi_window = identify_pi(win.op, win.pv, win.sp, ts)
+        gain_sign = pi_window.gain_sign
+        events = detect_stick_slip(
+            win.pv, win.op, win.sp, is_integrating(loop_type), gain_sign, p.stick_slip
+        )
         _events_into(diag, events, ts)
         if win.verdict is not None and events.test.verdict == "stiction" and not exclude_stiction:
             # set-point steps hide the oscillation tests, not the events around them
@@ -202,7 +207,8 @@ def diagnose(
     a, b = win.segment
     pv_s, op_s, sp_s = win.pv[a:b], win.op[a:b], win.sp[a:b]
     e = sp_s - pv_s
-    pi = identify_pi(op_s, pv_s, sp_s, ts)
+    whole = (a, b) == (0, n)
+    pi = pi_window if whole and pi_window is not None else identify_pi(op_s, pv_s, sp_s, ts)
     diag.indices["controller_fit"] = pi.fit
     diag.indices["controller_ti_s"] = pi.ti_s if pi.fit >= p.tuning.pi_min_fit else None
     osc = detect_oscillation(e, ts, p.oscillation)
@@ -292,18 +298,6 @@ def diagnose(
         diag.notes.append(split.reason)
     diag.actions = [_stiction_action(diag)]
     return diag
-
-
-def _stick_slip_events(
-    win: WindowReport, loop_type: str, ts: float, p: ChainParams
-) -> tuple[StickSlipResult, int]:
-    """Stick-slip events over the whole cleaned window (methods §4.10) and the process gain
-    sign they were read with (from the controller's action, identified on the same window)."""
-    gain_sign = identify_pi(win.op, win.pv, win.sp, ts).gain_sign
-    res = detect_stick_slip(
-        win.pv, win.op, win.sp, is_integrating(loop_type), gain_sign, p.stick_slip
-    )
-    return res, gain_sign
 
 
 def _events_vote(res: StickSlipResult, params: StickSlipParams) -> StictionTestResult:
