@@ -379,13 +379,10 @@ def _estimate_into(
 def _stiction_action(diag: Diagnosis) -> dict[str, str]:
     """The suggested action, sized by the best estimate and naming its method when that is
     not the Hammerstein identification."""
-    if diag.cause != "stiction":
-        return action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))
     est = diag.stiction.get("estimate") or {}
-    if est.get("S") is None:
-        return action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))
-    method = est.get("method")
-    return action_for(diag.cause, est["S"], est.get("J"), method)
+    if diag.cause == "stiction" and est.get("S") is not None:
+        return action_for(diag.cause, est["S"], est.get("J"), est.get("method"))
+    return action_for(diag.cause, diag.stiction.get("S"), diag.stiction.get("J"))
 
 
 def _quantify_recent(
