@@ -19,9 +19,11 @@ from plantcheck.diagnosis.cause_split import SplitParams, split_cause
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
 from plantcheck.diagnosis.oscillation import (
+    SPECTRAL,
     OscillationParams,
     OscillationResult,
     detect_oscillation,
+    oscillations_json,
 )
 from plantcheck.diagnosis.quantification import (
     QuantificationParams,
@@ -67,7 +69,7 @@ class ChainParams:
     """Every threshold of the standard chain, grouped by module (defaults: methods.md §10)."""
 
     window: WindowParams = field(default_factory=WindowParams)
-    oscillation: OscillationParams = field(default_factory=OscillationParams)
+    oscillation: OscillationParams = SPECTRAL
     shape: ShapeParams = field(default_factory=ShapeParams)
     horch: HorchParams = field(default_factory=HorchParams)
     bicoherence: BicoherenceParams = field(default_factory=BicoherenceParams)
@@ -262,6 +264,7 @@ def diagnose(
         "amplitude": osc.amplitude,
         "regularity": osc.regularity,
     }
+    diag.oscillations = oscillations_json(osc)
     if exclude_stiction:
         no_stiction = VoteResult("no_stiction", 0, 0, 0, -1.0)
         split = split_cause(op_s, pv_s, ts, osc, {}, no_stiction, pi, loop_type, p.split)

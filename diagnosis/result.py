@@ -139,6 +139,8 @@ class Diagnosis:
     confidence: float
     oscillating: bool
     oscillation: dict[str, float | None] | None = None
+    oscillations: list[dict[str, float | None]] | None = None
+    """Every oscillation found, the dominant first (contracts §2 optional field)."""
     stiction: dict[str, Any] = field(
         default_factory=lambda: {"detected": False, "S": None, "J": None, "tests": {}}
     )
@@ -159,6 +161,7 @@ class Diagnosis:
             "confidence": json_safe(round(float(self.confidence), 2)),
             "oscillating": self.oscillating,
             "oscillation": json_safe(self.oscillation),
+            "oscillations": json_safe(self.oscillations),
             "stiction": json_safe(self.stiction),
             "valve": json_safe(self.valve),
             "indices": json_safe(self.indices),

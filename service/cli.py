@@ -18,7 +18,7 @@ import typer
 
 from plantcheck import __version__
 from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagnose_advanced
-from plantcheck.diagnosis.oscillation import SPECTRAL
+from plantcheck.diagnosis.oscillation import SPECTRAL, oscillations_json
 from plantcheck.diagnosis.result import json_safe
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_run import demo_cmd, run_cmd
@@ -181,7 +181,8 @@ def oscillation_cmd(
     ] = DEFAULT_MAX_SAMPLES,
 ) -> None:
     """Test one signal for a sustained oscillation (Hägglund + Thornhill, then the band-passed
-    strongest spectral peak for irregular, multiple and slow oscillations)."""
+    spectral peaks for irregular and multiple oscillations, then the few-cycle test for slow
+    records) and list every oscillation found."""
     name = column.strip().lower()
     if name not in ("sp", "pv", "op", "mv"):
         raise fail(f"--column must be one of sp, pv, op, mv, not {column!r}")
@@ -212,6 +213,7 @@ def oscillation_cmd(
             period_s=res.period_s if res.oscillating else None,
             amplitude=res.amplitude if res.oscillating else None,
             regularity=res.regularity,
+            oscillations=oscillations_json(res),
         )
         notes.append(res.reason)
     out["notes"] = notes
@@ -224,6 +226,11 @@ def oscillation_cmd(
             text += f", period {out['period_s']:.1f} s, amplitude {out['amplitude']:.3g}"
         if out["regularity"] is not None:
             text += f", regularity {out['regularity']:.2f}"
+        for extra in out.get("oscillations", [])[1:]:
+            text += (
+                f"\nalso oscillating: period {extra['period_s']:.1f} s, "
+                f"amplitude {extra['amplitude']:.3g}"
+            )
         _emit(text + "".join(f"\nnote: {n}" for n in notes), False)
 
 

@@ -1,5 +1,5 @@
-"""The spectral-peak stage of the oscillation test (Thornhill, Huang & Zhang 2003; issue 26):
-irregular and slow oscillations found, noise left alone, and the real ISDB floor."""
+"""The oscillation test with its spectral stage (Thornhill, Huang & Zhang 2003; issue 26):
+irregular, multiple and slow oscillations found, noise left alone, and the real ISDB floor."""
 
 from __future__ import annotations
 
@@ -39,6 +39,34 @@ def test_too_short_a_record_says_so() -> None:
     x = np.sin(2 * np.pi * t / 250.0) + 0.05 * np.random.default_rng(4).normal(size=t.size)
     r = detect_oscillation(x, 1.0, SPECTRAL)
     assert not r.oscillating
+    assert "record too short to judge" in r.reason, r.reason
+
+
+def test_three_clear_cycles_of_a_slow_loop_are_enough() -> None:
+    """Slow loops at 60-s sampling show three or four cycles in a record (issue 26 item 3)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(720, dtype=np.float64)
+    for period in (180.0, 230.0):
+        x = np.sin(2 * np.pi * t / period) + 0.1 * rng.normal(size=t.size) + 0.001 * t
+        r = detect_oscillation(x, 60.0, SPECTRAL)
+        assert r.oscillating, r.reason
+        assert r.period_s is not None and abs(r.period_s / 60.0 - period) < 0.15 * period
+
+
+def test_two_oscillations_at_once_are_both_listed() -> None:
+    """A slow external cycle with a faster limit cycle on top: both reported, dominant first."""
+    rng = np.random.default_rng(6)
+    t = np.arange(6000, dtype=np.float64)
+    x = (
+        2.0 * np.sin(2 * np.pi * t / 400.0)
+        + 0.7 * np.sin(2 * np.pi * t / 37.0)
+        + 0.2 * rng.normal(size=t.size)
+    )
+    r = detect_oscillation(x, 1.0, SPECTRAL)
+    assert r.oscillating
+    periods = [c.period_s for c in r.components]
+    assert len(periods) == 2, periods
+    assert 360 < periods[0] < 440 and 33 < periods[1] < 41, periods
 
 
 def _noise(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -46,7 +74,7 @@ def _noise(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
     if kind == "white":
         return e
     if kind == "coloured":
-        phi = rng.uniform(0.5, 0.99)
+        phi = rng.uniform(0.5, 0.999)
         x = np.empty(n)
         x[0] = e[0]
         for k in range(1, n):
@@ -61,14 +89,15 @@ def _noise(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def test_false_alarms_on_signals_without_an_oscillation() -> None:
-    """White and coloured noise, random walks and steps: at most 2 % read as oscillating."""
+    """White and coloured noise (AR(1), φ 0.5-0.999), random walks and steps, 300 to 10,000
+    samples: at most 2 % read as oscillating (measured 1.1 % on 2,100 such records)."""
     rng = np.random.default_rng(0)
     calls = []
     for kind in ("white", "coloured", "walk", "steps"):
-        for _ in range(25):
-            n = int(rng.choice([1000, 3000, 10000]))
+        for _ in range(60):
+            n = int(rng.choice([300, 1000, 3000, 10000]))
             calls.append(detect_oscillation(_noise(kind, n, rng), 1.0, SPECTRAL).oscillating)
-    assert sum(calls) <= 2, sum(calls)
+    assert sum(calls) <= 0.02 * len(calls), sum(calls)
 
 
 @pytest.mark.skipif(
@@ -76,7 +105,7 @@ def test_false_alarms_on_signals_without_an_oscillation() -> None:
     reason=f"ISDB oscillation records not found at {DATA} (../shared is not beside the repo)",
 )
 def test_isdb_oscillation_dev_balanced_accuracy() -> None:
-    """What ``score_real.py oscillation`` measures with the CLI (measured 0.877; floor 0.85)."""
+    """What ``score_real.py oscillation`` measures with the CLI (measured 0.914; floor 0.85)."""
     hits = {True: [], False: []}  # type: dict[bool, list[bool]]
     for r in csv.DictReader((DATA / "labels.csv").open()):
         rows = list(csv.DictReader((DATA / r["file"]).open()))
@@ -91,3 +120,20 @@ def test_isdb_oscillation_dev_balanced_accuracy() -> None:
     specificity = sum(hits[False]) / len(hits[False])
     assert 0.5 * (recall + specificity) >= 0.85, (recall, specificity)
     assert specificity >= 0.85
+
+
+def test_the_chain_lists_the_oscillations_it_finds() -> None:
+    """``diagnose`` uses the same detector and reports ``oscillations`` (contracts §2)."""
+    from plantcheck.diagnosis import diagnose
+    from plantcheck.simulator.cases import generate_cases
+    from plantcheck.simulator.loop import simulate_loop
+
+    case = next(c for c in generate_cases(seed=1) if c.cause == "external_disturbance")
+    run = simulate_loop(case.config)
+    d = diagnose(run.pv, run.op, case.config.sample_time_s, sp=run.sp, loop_type=case.loop_type)
+    out = d.to_dict()
+    assert out["oscillating"], out["notes"]
+    assert out["oscillations"], out
+    first = out["oscillations"][0]
+    assert first["period_s"] == out["oscillation"]["period_s"]
+    assert set(first) == {"period_s", "amplitude", "regularity", "power_share"}
