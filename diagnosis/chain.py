@@ -242,8 +242,11 @@ def diagnose(
         if events is not None and events.test.verdict == "stiction" and not exclude_stiction:
             # A sluggish loop creeps toward SP with OP and PV together (idle index > 0); a load
             # change toward SP then looks like a slip. A sticky valve holds the PV while OP
-            # moves and slips against it (index <= 0), unless it does not move at all.
-            if not sluggish or events.unresponsive is not None:
+            # moves and slips against it (index <= 0), unless it does not move at all. Between
+            # set-point steps the index reads the tail of a step response, which creeps toward
+            # SP in any loop: there it cannot overrule the events.
+            after_steps = bool(win.indices.get("sp_steps"))
+            if not sluggish or events.unresponsive is not None or after_steps:
                 _stiction_from_events(diag, events, win.pv, win.op, gain_sign)
                 return diag
             diag.notes.append(

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from plantcheck.diagnosis.signal_tools import FloatArray, noise_sigma
 
 BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -48,8 +49,18 @@ class WindowParams:
     """Global SP index GI above this -> set point not stationary (PCU GI, [R])."""
     di_limit: float = 0.05
     """Point-wise SP index DI above this -> set-point step (PCU DI, [R])."""
-    min_segment_fraction: float = 0.5
-    """With SP steps, the longest constant-SP segment must cover this share of the window."""
+    min_segment_samples: int = 300
+    """The settled constant-SP stretch analysed must hold this many samples (the fewest the
+    stick-slip and oscillation tests work from); shorter -> ``insufficient_data`` [R]."""
+    settle_fraction: float = 0.1
+    """A set-point response has settled once the control error is back within this share of
+    the step (or 3 noise σ) [R, methods §3.3: T_s within ±5-10 %]."""
+    step_merge_samples: int = 5
+    """Set-point moves closer than this many samples are one step [R]."""
+    min_clamp_samples: int = 10
+    """An output at its own extreme for this many samples in a row rests at a limit [R]."""
+    clamp_error_noise: float = 3.0
+    """... while the control error stays off zero by this many noise σ (PV off set point) [R]."""
 
 
 @dataclass(frozen=True)
@@ -101,15 +112,6 @@ def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
             short[a:b] = True
     filled[short] = x[prev[short]]
     return np.asarray(filled, dtype=np.float64), longest
-
-
-def _longest_constant_segment(sp: FloatArray, step_tol: float) -> tuple[int, int]:
-    """Longest [start, stop) run of ``sp`` without a step larger than ``step_tol``."""
-    steps = np.flatnonzero(np.abs(np.diff(sp)) > step_tol) + 1
-    bounds = np.concatenate(([0], steps, [sp.size]))
-    lengths = np.diff(bounds)
-    i = int(np.argmax(lengths))
-    return int(bounds[i]), int(bounds[i + 1])
 
 
 def check_window(
@@ -202,37 +204,43 @@ def check_window(
     n_levels = int(np.unique(pv_f).size)
     unique_frac = n_levels / n
     indices["pv_unique_fraction"] = unique_frac
+    quantised = unique_frac < p.quantised_unique_fraction
+
+    # OP saturation (methods §1.4) and clamps at any output limit (issue 25)
+    e_f = sp_f - pv_f
+    clamp = _clamped(op_f, e_f, p)
+    indices["saturation_fraction"] = clamp.fraction
+    if clamp.limit is not None:
+        indices["op_limit"] = clamp.limit
+    if float(np.ptp(op_f)) == 0.0:
+        if clamp.fraction >= 1.0:
+            notes.append(
+                f"OP held at {op_f[0]:g} % over the whole window with PV kept off set point: "
+                "the output sits at a limit"
+            )
+            return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
+        notes.append("OP constant over the window: controller in manual or output frozen")
+        return WindowReport("manual_mode", notes, pv_f, op_f, sp_f, (0, n), indices)
+    if clamp.fraction > p.saturation_fraction:
+        notes.append(
+            f"OP clamped at its limit {clamp.limit:.4g} % for {100 * clamp.fraction:.0f} % of "
+            "the window with PV off set point"
+        )
+        return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
+    if clamp.fraction > 0:
+        notes.append(
+            f"OP at its limit {clamp.limit:.4g} % for {100 * clamp.fraction:.0f} % of the window"
+        )
+
+    # a clamped output is read before the PV's resolution: its offset is far above any step
     if n_levels < p.quantised_min_levels:
         notes.append(f"PV takes only {n_levels} distinct values: too coarsely quantised to judge")
         return WindowReport("data_quality", notes, pv_f, op_f, sp_f, (0, n), indices)
-    quantised = unique_frac < p.quantised_unique_fraction
     if quantised:
         notes.append(
             f"PV quantised or compressed ({100 * unique_frac:.1f} % distinct values): "
             "shape-based stiction tests are less reliable"
         )
-
-    # OP saturation (methods §1.4)
-    op_pp = float(np.ptp(op_f))
-    band = p.saturation_band
-    if op_pp == 0.0:
-        if op_f[0] <= band or op_f[0] >= 100.0 - band:
-            # clamped at a limit the whole window: saturation by definition (methods §1.4)
-            indices["saturation_fraction"] = 1.0
-            notes.append(f"OP held at {op_f[0]:g} % (a limit) over the whole window")
-            return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
-        notes.append("OP constant over the window: controller in manual or output frozen")
-        return WindowReport("manual_mode", notes, pv_f, op_f, sp_f, (0, n), indices)
-    # A saturated controller output is clamped: it sits at its extreme value, near 0 or 100 %.
-    op_lo, op_hi = float(np.min(op_f)), float(np.max(op_f))
-    pin = min(p.saturation_pin, 0.05 * op_pp)
-    pinned_lo = (op_f <= band) & (op_f <= op_lo + pin)
-    pinned_hi = (op_f >= 100.0 - band) & (op_f >= op_hi - pin)
-    sat_frac = float(np.mean(pinned_lo | pinned_hi))
-    indices["saturation_fraction"] = sat_frac
-    if sat_frac > p.saturation_fraction:
-        notes.append(f"OP within {p.saturation_band:g} % of a limit {100 * sat_frac:.0f} % of time")
-        return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
 
     # set-point stationarity: GI (global) and DI (point-wise), PCU [R]
     eps = 1e-12
@@ -240,23 +248,125 @@ def check_window(
     di = float(np.max(np.abs(np.diff(sp_f)))) / (pv_range + eps)
     indices["sp_gi"] = gi
     indices["sp_di"] = di
-    segment = (0, n)
+    steps = np.zeros(0, dtype=np.int64)
     if gi >= p.gi_limit and di >= p.di_limit:
         step_tol = max(p.di_limit * pv_range, 3.0 * noise_sigma(sp_f))
-        segment = _longest_constant_segment(sp_f, step_tol)
-        seg_len = segment[1] - segment[0]
-        if seg_len < max(p.min_samples, p.min_segment_fraction * n):
-            notes.append(
-                "set point changes too often: no constant-SP stretch long enough "
-                f"(longest {seg_len} samples)"
-            )
-            return WindowReport(
-                "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised, True
-            )
-        notes.append(
-            f"set-point steps in the window: analysed the constant-SP stretch "
-            f"{segment[0]}–{segment[1]} ({seg_len} samples)"
-        )
+        steps = np.flatnonzero(np.abs(np.diff(sp_f)) > step_tol) + 1
+        # a move spread over a few samples (an operator typing, a historian interpolating) is
+        # one step
+        steps = steps[np.concatenate(([True], np.diff(steps) > p.step_merge_samples))]
     elif gi >= p.gi_limit:
         notes.append("set point moves slowly (cascade or ramp): analysed the control error")
+    usable = ~clamp.mask
+    settling: list[int] = []
+    for k in steps.tolist():
+        end = _settled(e_f, k, float(sp_f[k] - sp_f[k - 1]), p)
+        settling.append(end - k)
+        usable[k:end] = False
+    segment = _longest_usable(usable, steps)
+    seg_len = segment[1] - segment[0]
+    needed = max(p.min_samples, p.min_segment_samples)
+    if steps.size == 0 and (clamp.fraction == 0 or seg_len < needed):
+        return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
+    if seg_len < needed:
+        notes.append(
+            f"{steps.size} set-point step(s) with their responses leave no settled stretch of "
+            f"{needed} samples (longest {seg_len}): too short for the oscillation and tuning tests"
+        )
+        return WindowReport(
+            "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised, True
+        )
+    if steps.size:
+        notes.append(
+            f"{steps.size} set-point step(s) at sample(s) {', '.join(map(str, steps.tolist()))}; "
+            f"responses settled within {max(settling)} samples; analysed the settled stretch "
+            f"{segment[0]}-{segment[1]} ({seg_len} samples)"
+        )
+    else:
+        notes.append(
+            f"analysed the stretch {segment[0]}-{segment[1]} ({seg_len} samples) with the output "
+            "off its limit"
+        )
+    indices["sp_steps"] = float(steps.size)
     return WindowReport(None, notes, pv_f, op_f, sp_f, segment, indices, quantised)
+
+
+@dataclass(frozen=True)
+class Clamp:
+    """Where the controller output rests at a limit (its own extreme value, any level)."""
+
+    mask: BoolArray
+    fraction: float
+    limit: float | None
+
+
+def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
+    """[start, stop) of each run of True in ``mask``."""
+    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
+def _clamped(op: FloatArray, e: FloatArray, p: WindowParams) -> Clamp:
+    """Samples where OP rests at an output limit while PV is off set point.
+
+    A DCS output limit can sit anywhere (55 %, say), so the limit is OP's own extreme value
+    over the window, not 0 or 100 %: OP exactly at its maximum (or minimum) for at least
+    ``min_clamp_samples`` in a row, the control error off zero by
+    ``clamp_error_noise`` × its noise σ on average and on one side over the run. Near 0 or 100 %
+    (``saturation_band``) any sample pinned at the extreme counts (methods §1.4, [V]).
+    """
+    n = int(op.size)
+    op_pp = float(np.ptp(op))
+    sigma_e = noise_sigma(e)
+    pin = min(p.saturation_pin, 0.05 * op_pp) if op_pp > 0 else 0.0
+    mask = np.zeros(n, dtype=bool)
+    limits: list[tuple[float, float]] = []
+    for extreme, near_end in (
+        (float(np.max(op)), float(np.max(op)) >= 100.0 - p.saturation_band),
+        (float(np.min(op)), float(np.min(op)) <= p.saturation_band),
+    ):
+        if near_end:
+            side = np.abs(op - extreme) <= pin
+        else:
+            # a limit holds OP at exactly its value; a slow output only passes its extreme
+            at = np.abs(op - extreme) <= 1e-9 * max(1.0, abs(extreme))
+            side = np.zeros(n, dtype=bool)
+            starts, stops = _runs(at)
+            for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
+                if b - a < p.min_clamp_samples:
+                    continue
+                run = e[a:b]
+                off = float(np.mean(np.abs(run))) > p.clamp_error_noise * sigma_e
+                one_sided = abs(float(np.mean(np.sign(run)))) >= 0.8
+                if off and one_sided:
+                    side[a:b] = True
+        if side.any():
+            limits.append((float(np.mean(side)), extreme))
+            mask |= side
+    limit = max(limits)[1] if limits else None
+    return Clamp(mask, float(np.mean(mask)), limit)
+
+
+def _settled(e: FloatArray, k: int, step: float, p: WindowParams) -> int:
+    """First sample after the set-point step at ``k`` (size ``step``) where the control error,
+    lightly smoothed, is back within ``settle_fraction`` of the step or 3 noise σ: the step
+    response read from the data, whatever the loop's speed."""
+    tail = e[k:]
+    if tail.size == 0:
+        return k
+    width = 5
+    smooth = np.convolve(tail, np.ones(width) / width, mode="same") if tail.size > width else tail
+    band = max(p.settle_fraction * abs(step), 3.0 * noise_sigma(e))
+    inside = np.flatnonzero(np.abs(smooth) <= band)
+    return k + (int(inside[0]) if inside.size else int(tail.size))
+
+
+def _longest_usable(usable: BoolArray, steps: IntArray) -> tuple[int, int]:
+    """Longest run of usable samples that holds no set-point step."""
+    cut = usable.copy()
+    cut[steps] = False  # a step sample ends a stretch even when its response was instant
+    starts, stops = _runs(cut)
+    if starts.size == 0:
+        return 0, 0
+    i = int(np.argmax(stops - starts))
+    return int(starts[i]), int(stops[i])

@@ -48,11 +48,60 @@ def test_frozen_and_quantised_pv() -> None:
     assert check_window(coarse, OP).verdict == "data_quality"
 
 
-def test_sp_steps_keep_longest_constant_stretch() -> None:
+def _tracking(sp: np.ndarray, tau: float = 50.0) -> np.ndarray:
+    """A PV that follows its set point through a first-order lag of ``tau`` samples."""
+    pv = np.empty(sp.size)
+    pv[0] = sp[0]
+    a = np.exp(-1.0 / tau)
+    for k in range(1, sp.size):
+        pv[k] = a * pv[k - 1] + (1 - a) * sp[k]
+    return pv + RNG.normal(0, 0.05, sp.size)
+
+
+def test_sp_step_response_is_left_out_and_the_settled_stretch_analysed() -> None:
     sp = np.where(np.arange(N) < 300, 50.0, 55.0)
-    rep = check_window(PV, OP, sp)
+    rep = check_window(_tracking(sp), OP, sp)
     assert rep.verdict is None
-    assert rep.segment == (300, N)
+    # the response to a 5-unit step through a 50-sample lag settles within ~115 samples
+    assert 380 < rep.segment[0] < 460 and rep.segment[1] == N, rep.segment
+    assert any("settled stretch" in n for n in rep.notes), rep.notes
+
+
+def test_frequent_sp_steps_do_not_make_a_window_unusable() -> None:
+    """Four steps in 2,000 samples (issue 25): judged on the longest settled stretch."""
+    sp = 50.0 + np.select(
+        [np.arange(N) < 400, np.arange(N) < 800, np.arange(N) < 1200, np.arange(N) < 1600],
+        [0.0, 3.0, -2.0, 4.0],
+        1.0,
+    )
+    rep = check_window(_tracking(sp), OP, sp)
+    assert rep.verdict is None and not rep.sp_limited, rep.notes
+    assert rep.segment[1] - rep.segment[0] >= 300
+    # steps every 150 samples leave nothing long enough: said with the number
+    dense = 50.0 + 3.0 * ((np.arange(N) // 150) % 2)
+    rep = check_window(_tracking(dense), OP, dense)
+    assert rep.verdict == "insufficient_data" and rep.sp_limited
+    assert any("leave no settled stretch of 300 samples" in n for n in rep.notes), rep.notes
+
+
+def test_an_output_limit_anywhere_is_a_clamp() -> None:
+    """A DCS limit at 55 %: OP rests exactly there while PV stays below SP."""
+    k = np.arange(N)
+    op = np.where(k < 600, 45 + 10 * k / 600, 55.0)
+    pv = np.where(k < 600, 50.0, 50.0 - 4 * (1 - np.exp(-(k - 600) / 80.0)))
+    pv = pv + RNG.normal(0, 0.05, N)
+    rep = check_window(pv, op, np.full(N, 50.0))
+    assert rep.verdict == "saturation", rep.notes
+    assert rep.indices["op_limit"] == 55.0 and rep.indices["saturation_fraction"] > 0.6
+    # a slow output that only passes its maximum is no clamp
+    smooth = 50 + 5 * np.sin(2 * np.pi * k / N)
+    assert check_window(pv, smooth, np.full(N, 50.0)).indices["saturation_fraction"] == 0.0
+
+
+def test_a_constant_output_with_pv_held_off_set_point_is_saturation() -> None:
+    pv = 46.0 + RNG.normal(0, 0.05, N)
+    rep = check_window(pv, np.full(N, 72.0), np.full(N, 50.0))
+    assert rep.verdict == "saturation", rep.notes
 
 
 def test_diagnose_rejects_unknown_loop_type() -> None:

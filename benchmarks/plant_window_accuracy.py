@@ -1,0 +1,87 @@
+"""The standard chain on windows as running plants give them (issue 25).
+
+Cases from ``simulator.plant_windows.generate_plant_window_cases``: every class with 0-4
+set-point steps, output limits at 50-95 %, disturbance periods of 0.5-20 × the loop's ultimate
+period, continuous or quantised PV and three noise levels. Prints the confusion matrix, recall,
+precision and F1 per class and the macro-F1, then the accuracy per family (set-point steps,
+output limit, recording, noise), so a weak family is visible, and how many windows were refused
+for set-point steps alone.
+
+    python benchmarks/plant_window_accuracy.py [--seeds 1 2] [--per-cell 2] [-v]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import time
+
+from plantcheck.diagnosis import diagnose
+from plantcheck.simulator.loop import simulate_loop
+from plantcheck.simulator.plant_windows import CLASSES, generate_plant_window_cases
+
+REFUSED_FOR_SP = "leave no settled stretch"
+
+
+def _f1(tp: int, fp: int, fn: int) -> tuple[float, float, float]:
+    recall = tp / (tp + fn) if tp + fn else 0.0
+    precision = tp / (tp + fp) if tp + fp else 0.0
+    f1 = 2 * recall * precision / (recall + precision) if recall + precision else 0.0
+    return recall, precision, f1
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--per-cell", type=int, default=2)
+    ap.add_argument("-v", "--verbose", action="store_true", help="list every wrong window")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    confusion: collections.Counter[tuple[str, str]] = collections.Counter()
+    family: dict[str, collections.Counter[tuple[str, bool]]] = collections.defaultdict(
+        collections.Counter
+    )
+    refused = 0
+    for seed in args.seeds:
+        for pc in generate_plant_window_cases(seed=seed, per_cell=args.per_cell):
+            c = pc.case
+            r = simulate_loop(c.config)
+            d = diagnose(
+                r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type, quantify=False
+            )
+            confusion[(c.cause, d.cause)] += 1
+            hit = d.cause == c.cause
+            family["set-point steps"][(str(pc.sp_steps), hit)] += 1
+            family["output limit"][("below 100 %" if pc.op_limit else "free", hit)] += 1
+            family["recording"][(pc.recording, hit)] += 1
+            family["noise"][(f"σ {pc.noise:g} %", hit)] += 1
+            if d.cause == "insufficient_data" and any(REFUSED_FOR_SP in n for n in d.notes):
+                refused += 1
+            if args.verbose and not hit:
+                print(f"{c.name:70s} -> {d.cause:22s} {'; '.join(d.notes)[:160]}")
+    total = sum(confusion.values())
+    predicted = sorted({p for _, p in confusion} | set(CLASSES))
+    print(f"windows: {total} in {time.perf_counter() - t0:.1f} s")
+    print("true \\ predicted".ljust(22) + "".join(p[:11].rjust(12) for p in predicted))
+    f1s = []
+    for cls in CLASSES:
+        row = "".join(str(confusion[(cls, p)]).rjust(12) for p in predicted)
+        tp = confusion[(cls, cls)]
+        fn = sum(confusion[(cls, p)] for p in predicted) - tp
+        fp = sum(confusion[(t, cls)] for t in CLASSES) - tp
+        recall, precision, f1 = _f1(tp, fp, fn)
+        f1s.append(f1)
+        print(f"{cls[:21]:22s}{row}   recall {recall:.2f} precision {precision:.2f} F1 {f1:.2f}")
+    accuracy = sum(confusion[(c, c)] for c in CLASSES) / total
+    print(f"accuracy {accuracy:.3f}, macro-F1 {sum(f1s) / len(f1s):.3f}")
+    print(f"refused for set-point steps alone: {refused} of {total}")
+    for name, counts in family.items():
+        cells = sorted({k for k, _ in counts})
+        parts = [
+            f"{k}: {counts[(k, True)]}/{counts[(k, True)] + counts[(k, False)]}" for k in cells
+        ]
+        print(f"{name:16s} " + ", ".join(parts))
+
+
+if __name__ == "__main__":
+    main()
