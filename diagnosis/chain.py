@@ -39,6 +39,7 @@ from plantcheck.diagnosis.shape_tests import (
     significant_half_cycles,
 )
 from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average, noise_sigma
+from plantcheck.diagnosis.step_response import sp_step_responses, step_slowness
 from plantcheck.diagnosis.stick_slip import (
     StickSlipParams,
     StickSlipResult,
@@ -239,6 +240,18 @@ def diagnose(
         )
         diag.indices["idle_index"] = ii
         sluggish = ii is not None and ii > p.tuning.idle_limit
+        responses = sp_step_responses(win.pv, win.sp, np.asarray(win.steps, dtype=np.int64))
+        slowness = step_slowness(responses)
+        diag.indices["sp_step_slowness"] = slowness
+        if slowness is not None:
+            # a set-point step is a clean experiment: it overrules the idle index, which only
+            # sees load recoveries and reads a healthy slow loop's creep as sluggish
+            sluggish = slowness > p.tuning.step_slowness_limit
+            diag.notes.append(
+                f"set-point step response(s): closed-loop time constant {slowness:.1f} x the "
+                f"dead time (median of {len(responses)}; sluggish above "
+                f"{p.tuning.step_slowness_limit:g})"
+            )
         if events is not None and events.test.verdict == "stiction" and not exclude_stiction:
             # A sluggish loop creeps toward SP with OP and PV together (idle index > 0); a load
             # change toward SP then looks like a slip. A sticky valve holds the PV while OP
@@ -253,7 +266,10 @@ def diagnose(
                 "stick-slip events set aside: the loop recovers like a sluggish one "
                 f"(idle index {ii:.2f})"
             )
-        if sluggish and ii is not None:
+        if sluggish and slowness is not None:
+            diag.cause = "sluggish_tuning"
+            diag.confidence = float(min(0.9, 0.5 + 0.05 * slowness))
+        elif sluggish and ii is not None:
             diag.cause = "sluggish_tuning"
             diag.confidence = float(min(0.9, 0.5 + (ii - p.tuning.idle_limit)))
         else:

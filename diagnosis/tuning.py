@@ -27,6 +27,11 @@ class TuningParams:
     """Idle index above this -> sluggish. Hägglund (1999/2005) suggests 0.4 [M]; with increments
     filtered over 0.5·Ti, 0 recognised 64 % of the generated sluggish loops and flagged none of
     the healthy ones, against 24 % at 0.4 (benchmarks/diagnosis_accuracy.py) [calibrated]."""
+    step_slowness_limit: float = 3.0
+    """Set-point step response: closed-loop time constant above this many dead times ->
+    sluggish (``step_response.step_slowness``). SIMC tuning answers in about one dead time
+    (Skogestad 2003); generated windows with steps (``simulator/plant_windows.py``): healthy
+    loops 0.6-2.4, sticky ones 0.5-2.7, sluggish ones 3.2-350 [R]."""
     idle_min_samples: int = 50
     """Fewest informative samples (both increments beyond the dead zone) for an idle index."""
     idle_filter_ti: float = 0.5

@@ -84,6 +84,8 @@ class WindowReport:
     sp_limited: bool = False
     """``insufficient_data`` only because set-point steps leave no long constant-SP stretch:
     tests that read the whole window (stick-slip events) still apply."""
+    steps: tuple[int, ...] = ()
+    """Samples at which the set point steps (their responses feed the tuning verdict)."""
 
 
 def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
@@ -274,8 +276,9 @@ def check_window(
             f"{needed} samples (longest {seg_len}): too short for the oscillation and tuning tests"
         )
         return WindowReport(
-            "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised, True
-        )
+            "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised, True,
+            tuple(steps.tolist()),
+        )  # fmt: skip
     if steps.size:
         notes.append(
             f"{steps.size} set-point step(s) at sample(s) {', '.join(map(str, steps.tolist()))}; "
@@ -288,7 +291,9 @@ def check_window(
             "off its limit"
         )
     indices["sp_steps"] = float(steps.size)
-    return WindowReport(None, notes, pv_f, op_f, sp_f, segment, indices, quantised)
+    return WindowReport(
+        None, notes, pv_f, op_f, sp_f, segment, indices, quantised, False, tuple(steps.tolist())
+    )
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,64 @@
+"""diagnosis/step_response.py: set-point step responses judge the tuning, and a healthy slow
+loop is not sluggish (issue 25 item 2)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from plantcheck.diagnosis import diagnose
+from plantcheck.diagnosis.step_response import sp_step_responses, step_slowness
+from plantcheck.simulator.cases import process_setup
+from plantcheck.simulator.loop import LoopConfig, simulate_loop
+
+
+def _stepped(pname: str, sluggish: bool, seed: int = 3) -> tuple[LoopConfig, float]:
+    su = process_setup(pname)
+    pi = replace(su.pi, Kc=0.2 * su.pi.Kc, Ti_s=5 * su.pi.Ti_s) if sluggish else su.pi
+    n = 3600
+    dur = n * su.ts
+    cfg = LoopConfig(
+        process=su.process,
+        controller=pi,
+        sample_time_s=su.ts,
+        n_samples=n,
+        warmup_samples=int(20 * su.tu / su.ts) + 200,
+        noise_std=0.2,
+        seed=seed,
+        sp_steps=((0.2 * dur, 54.0), (0.55 * dur, 47.0)),
+    )
+    return cfg, su.ts
+
+
+@pytest.mark.parametrize("pname", ["flow", "temperature", "composition"])
+def test_well_tuned_loops_answer_in_about_their_dead_time(pname: str) -> None:
+    """SIMC answers a step within about one dead time, whether the process takes 2 s (flow)
+    or 150 s (composition): the slow one is not sluggish."""
+    cfg, ts = _stepped(pname, sluggish=False)
+    run = simulate_loop(cfg)
+    steps = np.flatnonzero(np.abs(np.diff(run.sp)) > 1.0) + 1
+    slowness = step_slowness(sp_step_responses(run.pv, run.sp, steps))
+    assert slowness is not None and slowness < 3.0
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type="other", quantify=False)
+    assert d.cause == "ok", d.notes
+
+
+@pytest.mark.parametrize("pname", ["flow", "pressure", "composition"])
+def test_sluggish_loops_show_it_in_their_step_responses(pname: str) -> None:
+    cfg, ts = _stepped(pname, sluggish=True)
+    run = simulate_loop(cfg)
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type="other", quantify=False)
+    assert d.cause == "sluggish_tuning", d.notes
+    assert d.indices["sp_step_slowness"] is not None and d.indices["sp_step_slowness"] > 3.0
+    assert any("set-point step response" in n for n in d.notes)
+
+
+def test_small_or_short_steps_are_not_read() -> None:
+    rng = np.random.default_rng(1)
+    pv = 50 + rng.normal(0, 1.0, 1000)
+    sp = np.where(np.arange(1000) < 500, 50.0, 52.0)  # 2 σ: lost in the noise
+    assert sp_step_responses(pv, sp, np.array([500])) == ()
+    sp = np.where(np.arange(1000) < 990, 50.0, 60.0)  # 10 samples left: too few
+    assert sp_step_responses(pv, sp, np.array([990])) == ()
