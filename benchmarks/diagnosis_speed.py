@@ -3,7 +3,8 @@
 Windows of 3,600 and 86,400 samples (1 h and 1 day at 1 s) of a sticky flow loop, which runs
 every stage: window checks, oscillation, all stiction tests and the vote. Targets (issue 2):
 <= 10 ms and <= 200 ms for the detection chain. The same window with the S/J quantification
-(issue 3, Hammerstein grid search) is printed beside it. Pin to one core with ``taskset -c 0``.
+(issue 3, Hammerstein grid search) is printed beside it, and the 3,600-sample window with four
+set-point steps (issue 25: <= 10 ms). Pin to one core with ``taskset -c 0``.
 
     python benchmarks/diagnosis_speed.py [--repeat 30]
 """
@@ -14,6 +15,7 @@ import argparse
 import os
 import statistics
 import time
+from dataclasses import replace
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.simulator.cases import sticky_flow_config
@@ -23,9 +25,24 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(var, "1")
 
 
-def window(n: int) -> tuple[object, ...]:
-    r = simulate_loop(sticky_flow_config(n))
+def window(n: int, sp_steps: int = 0) -> tuple[object, ...]:
+    cfg = sticky_flow_config(n)
+    if sp_steps:
+        gap = n * cfg.sample_time_s / (sp_steps + 1)
+        levels = [52.0, 49.0, 53.0, 50.0, 51.0]
+        steps = tuple(((k + 1) * gap, levels[k % 5]) for k in range(sp_steps))
+        cfg = replace(cfg, sp_steps=steps)
+    r = simulate_loop(cfg)
     return r.pv, r.op, r.sp
+
+
+def _median_ms(pv: object, op: object, sp: object, quantify: bool, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        diagnose(pv, op, 1.0, sp=sp, loop_type="flow", quantify=quantify)  # type: ignore[arg-type]
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times) * 1000
 
 
 def main() -> None:
@@ -37,12 +54,9 @@ def main() -> None:
         pv, op, sp = window(n)
         for quantify in (False, True):
             d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow", quantify=quantify)  # type: ignore[arg-type]
-            times = []
-            for _ in range(args.repeat if not quantify else max(3, args.repeat // 10)):
-                t0 = time.perf_counter()
-                diagnose(pv, op, 1.0, sp=sp, loop_type="flow", quantify=quantify)  # type: ignore[arg-type]
-                times.append(time.perf_counter() - t0)
-            med = statistics.median(times) * 1000
+            med = _median_ms(
+                pv, op, sp, quantify, args.repeat if not quantify else max(3, args.repeat // 10)
+            )
             what = "chain + S/J quantification" if quantify else "detection chain"
             target = (
                 ""
@@ -50,6 +64,14 @@ def main() -> None:
                 else f"  target <= {target_ms:g} ms " + ("OK" if med <= target_ms else "MISSED")
             )
             print(f"{n:6d} samples, {what:27s}: median {med:8.2f} ms{target}  cause={d.cause}")
+    pv, op, sp = window(3600, sp_steps=4)
+    d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow", quantify=False)  # type: ignore[arg-type]
+    med = _median_ms(pv, op, sp, False, args.repeat)
+    verdict = "OK" if med <= 10.0 else "MISSED"
+    print(
+        f"  3600 samples, 4 set-point steps         : median {med:8.2f} ms  target <= 10 ms "
+        f"{verdict}  cause={d.cause}"
+    )
 
 
 if __name__ == "__main__":

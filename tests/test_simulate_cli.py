@@ -96,3 +96,18 @@ def test_simulate_serves_until_stopped() -> None:
         proc.terminate()
         stdout, _ = proc.communicate(timeout=20)
     assert stdout.startswith("loop,signal,address,type")  # the map is printed at start
+
+
+def test_a_loop_whose_set_point_moves_every_20_minutes_gets_its_true_cause(
+    tmp_path: Path, run_cli: RunCli
+) -> None:
+    """Issue 25: FIC101's operator moves its set point every 20 minutes; a 2-hour window holds
+    five steps and is judged on what is left, not refused."""
+    out = tmp_path / "rec"
+    r = run_cli("simulate", "--to-csv", str(out), "--duration", "2h")
+    assert r.returncode == 0, r.stderr
+    d = run_cli("diagnose", str(out / "FIC101.csv"), "--loop-type", "flow", "--json")
+    assert d.returncode == 0, d.stderr
+    out_json = json.loads(d.stdout)
+    assert out_json["cause"] == "ok", out_json["notes"]
+    assert any("set-point step" in n for n in out_json["notes"]), out_json["notes"]
