@@ -50,7 +50,10 @@ Backend = Annotated[ServiceBackend, Depends(get_backend)]
 
 
 def _key_matches(given: str | None, expected: str) -> bool:
-    return given is not None and secrets.compare_digest(given.encode(), expected.encode())
+    """Constant-time comparison; an empty key (given or configured) never matches."""
+    if not given or not expected:
+        return False
+    return secrets.compare_digest(given.encode(), expected.encode())
 
 
 def require_read_key(

@@ -61,8 +61,10 @@ def paginate(
         response.headers["X-Total-Count"] = str(total)
         more = offset + limit < total
     if more:
+        # relative (RFC 8288 allows it): a URL built from the Host header would let any
+        # client choose where the next-page link points
         nxt = request.url.include_query_params(offset=offset + limit, limit=limit)
-        response.headers["Link"] = f'<{nxt}>; rel="next"'
+        response.headers["Link"] = f'<{nxt.path}?{nxt.query}>; rel="next"'
 
 
 @router.get("/loops", response_model=list[LoopOut], responses=UNAUTHORIZED)

@@ -16,9 +16,11 @@ Tag syntax:
 
 from __future__ import annotations
 
+import ipaddress
 import re
 from pathlib import Path
 from typing import Literal
+from urllib.parse import urlsplit
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -27,11 +29,27 @@ from plantcheck.service.toml_config import ConfigError, dotted, load_toml, locat
 DEFAULT_CONFIG = Path("plantcheck.toml")
 SIGNAL_KEYS = ("sp", "pv", "op", "mv", "mode")
 MODBUS_TAG = re.compile(r"^(hr|ir):(\d{1,5}):(float32|float64|int16|uint16|int32|uint32)$")
-OPCUA_TAG = re.compile(r"^(ns=\d+;)?[isgb]=.+$")
+MODBUS_WORDS = {"int16": 1, "uint16": 1, "float32": 2, "int32": 2, "uint32": 2, "float64": 4}
+OPCUA_TAG = re.compile(
+    r"^((ns=\d+|nsu=[^;]+);)?"
+    r"(i=\d+|s=.+|g=[0-9A-Fa-f]{8}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{4}-[0-9A-Fa-f]{12}"
+    r"|b=[A-Za-z0-9+/]+={0,2})$"
+)
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    # inf and nan are valid TOML floats but never a valid setting
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def is_loopback(host: str) -> bool:
+    """``localhost`` or a loopback address: reachable from this machine only."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 class StorageConfig(_Strict):
@@ -65,6 +83,23 @@ class ApiConfig(_Strict):
     api_key: str = ""
     """Required (header ``X-API-Key``) for every endpoint that changes anything."""
     require_key_for_reads: bool = False
+    allow_unauthenticated: bool = False
+    """Serve reads without a key on an address other machines can reach (``host`` not
+    loopback); refused unless written here, so an open service is a decision."""
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ApiConfig:
+        if self.require_key_for_reads and not self.api_key:
+            raise ValueError(
+                "require_key_for_reads = true needs api_key: set [api] api_key (or drop "
+                "require_key_for_reads)"
+            )
+        if not is_loopback(self.host) and not self.api_key and not self.allow_unauthenticated:
+            raise ValueError(
+                f"host {self.host!r} is reachable from other machines and no api_key is set: "
+                "set [api] api_key, bind host = '127.0.0.1', or write allow_unauthenticated = true"
+            )
+        return self
 
 
 class SchedulerConfig(_Strict):
@@ -96,7 +131,7 @@ class SourceConfig(_Strict):
     byte_order: Literal["big", "little"] = "big"
     url: str = ""
     """OPC UA endpoint, ``opc.tcp://HOST:PORT/path``."""
-    poll_interval_s: float = Field(1.0, gt=0, le=3600)
+    poll_interval_s: float = Field(1.0, ge=0.05, le=3600)
     """Modbus poll period, OPC UA sampling interval (s)."""
     timeout_s: float = Field(2.0, gt=0, le=60)
     mode: Literal["subscribe", "poll"] = "subscribe"
@@ -104,8 +139,16 @@ class SourceConfig(_Strict):
 
     @model_validator(mode="after")
     def _endpoint(self) -> SourceConfig:
-        if self.protocol == "opcua" and not self.url.startswith("opc.tcp://"):
-            raise ValueError(f"source {self.name!r}: opcua needs url = 'opc.tcp://HOST:PORT/path'")
+        if self.protocol == "opcua":
+            parts = urlsplit(self.url)
+            try:
+                port_ok = parts.port is None or 0 < parts.port < 65536
+            except ValueError:
+                port_ok = False
+            if parts.scheme != "opc.tcp" or not parts.hostname or not port_ok:
+                raise ValueError(
+                    f"source {self.name!r}: opcua needs url = 'opc.tcp://HOST:PORT/path'"
+                )
         return self
 
 
@@ -168,11 +211,20 @@ class Config(_Strict):
                 )
                 continue
             for sig, tag in lp.tags().items():
-                if src.protocol == "modbus" and not MODBUS_TAG.match(tag):
+                m = MODBUS_TAG.match(tag)
+                if src.protocol == "modbus" and not m:
                     out.append(
                         (
                             ("loop", i, sig),
                             f"{tag!r} is not a Modbus tag TABLE:ADDRESS:TYPE, e.g. 'hr:12:float32'",
+                        )
+                    )
+                elif m and int(m.group(2)) + MODBUS_WORDS[m.group(3)] > 65536:
+                    out.append(
+                        (
+                            ("loop", i, sig),
+                            f"{tag!r} reaches beyond the last Modbus register (65535): "
+                            "addresses are 0-based, 0-65535",
                         )
                     )
                 if src.protocol == "opcua" and not OPCUA_TAG.match(tag):

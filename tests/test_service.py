@@ -41,6 +41,13 @@ def test_loop_detail_and_history(service: Service) -> None:
     assert int(r.headers["X-Total-Count"]) >= 1
     if int(r.headers["X-Total-Count"]) > 1:
         assert 'rel="next"' in r.headers["Link"]
+        # the next-page link is relative: never built from the Host header (issue 27)
+        forged = httpx.get(
+            f"{service.url}/api/v1/loops/FIC102/diagnoses",
+            params={"limit": 1},
+            headers={"Host": "evil.example"},
+        )
+        assert forged.headers["Link"].startswith("</api/v1/loops/FIC102/diagnoses?")
     old = httpx.get(
         f"{service.url}/api/v1/loops/FIC102/diagnoses", params={"to": "2000-01-01T00:00:00Z"}
     )
@@ -145,6 +152,8 @@ def test_reads_need_the_key_when_configured(service: Service) -> None:
     svc = start_service(config, port, service.truth, service.start)
     try:
         assert httpx.get(f"{svc.url}/api/v1/loops").status_code == 401
+        # an empty key header never matches (issue 27)
+        assert httpx.get(f"{svc.url}/api/v1/loops", headers={"X-API-Key": ""}).status_code == 401
         assert httpx.get(f"{svc.url}/").status_code == 401
         r = httpx.get(f"{svc.url}/api/v1/loops", headers={"X-API-Key": API_KEY})
         assert r.status_code == 200 and len(r.json()) == 8
