@@ -24,6 +24,7 @@ from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_run import demo_cmd, run_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
+from plantcheck.service.logs import LogOptions
 from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
 
 DEFAULT_MAX_SAMPLES = 200_000
@@ -48,6 +49,22 @@ class LoopType(StrEnum):
     other = "other"
 
 
+class LogLevel(StrEnum):
+    """``--log-level`` values."""
+
+    debug = "debug"
+    info = "info"
+    warning = "warning"
+    error = "error"
+
+
+class LogFormat(StrEnum):
+    """``--log-format`` values."""
+
+    plain = "plain"
+    json = "json"
+
+
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"plantcheck {__version__}")
@@ -56,12 +73,23 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _root(
+    ctx: typer.Context,
     version: Annotated[
         bool,
         typer.Option("--version", callback=_version, is_eager=True, help="Show the version."),
     ] = False,
+    log_level: Annotated[
+        LogLevel | None,
+        typer.Option(
+            "--log-level", help="debug, info, warning or error (default: info for the service)."
+        ),
+    ] = None,
+    log_format: Annotated[
+        LogFormat, typer.Option("--log-format", help="plain lines or one JSON object per line.")
+    ] = LogFormat.plain,
 ) -> None:
     """plantcheck: on-line monitoring and diagnosis of control loops."""
+    ctx.obj = LogOptions(log_level.value if log_level else None, log_format.value)
 
 
 def _load(file: Path, sample_time: float | None, need: tuple[str, ...]) -> LoopRecordFile:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import logging
 import signal
 import socket
 import subprocess
@@ -21,6 +20,7 @@ import uvicorn
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_store import ConfigOpt, _config
 from plantcheck.service.config import Config
+from plantcheck.service.logs import configure_for_command
 from plantcheck.storage.database import StorageError, upgrade
 from plantcheck.storage.results import loop_statuses
 from plantcheck.storage.store import Store
@@ -122,7 +122,7 @@ def run_cmd(
 ) -> None:
     """Run the service: ingest the configured sources, diagnose every loop on its rolling
     window, serve the REST API and the web page (one process; one per database)."""
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s %(message)s")
+    configure_for_command("info")
     cfg = _config(config)
     api = cfg.api.model_copy(update={k: v for k, v in (("host", host), ("port", port)) if v})
     cfg = cfg.model_copy(update={"api": api})
@@ -190,7 +190,7 @@ def demo_cmd(
     cause within about 2 minutes)."""
     from plantcheck.service.config import load_config
 
-    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(message)s")
+    configure_for_command("warning")
     _check_port("127.0.0.1", port, "choose another with --port")
     with contextlib.ExitStack() as stack:
         if data_dir is None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import logging
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated
@@ -11,6 +10,7 @@ from typing import Annotated
 import typer
 
 from plantcheck.service.cli_common import fail, parse_duration, parse_host_port
+from plantcheck.service.logs import configure_for_command
 from plantcheck.service.toml_config import ConfigError
 from plantcheck.simulator.scenario import Scenario, load_scenario
 
@@ -130,7 +130,7 @@ def simulate_cmd(
 def _serve(scenario: Scenario) -> None:
     from plantcheck.simulator.runner import PlantRunner
 
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
+    configure_for_command("info")
 
     async def main() -> None:
         runner = PlantRunner(scenario)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import logging
 import time
 from pathlib import Path
 from typing import Annotated
@@ -13,6 +12,7 @@ import typer
 
 from plantcheck.service.cli_common import fail, parse_duration
 from plantcheck.service.config import Config, load_config
+from plantcheck.service.logs import configure_for_command
 from plantcheck.service.records import RecordError, read_record
 from plantcheck.service.toml_config import ConfigError
 from plantcheck.storage.database import StorageError, upgrade
@@ -112,7 +112,7 @@ def ingest_cmd(
             seconds = parse_duration(duration)
         except ValueError as exc:
             raise fail(f"--duration: {exc}") from None
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
+    configure_for_command("info")
 
     async def run() -> None:
         ing = await Ingestion.start(cfg, config_hint=str(config or "plantcheck.toml"))

@@ -1,0 +1,47 @@
+"""service/logs.py: one logging configuration, libraries quiet, plain or JSON lines."""
+
+from __future__ import annotations
+
+import json
+import logging
+
+import pytest
+from helpers import RunCli
+
+from plantcheck.service.logs import configure_logging
+
+
+@pytest.fixture(autouse=True)
+def _restore_logging() -> object:
+    root = logging.getLogger()
+    handlers, level = list(root.handlers), root.level
+    yield None
+    root.handlers[:] = handlers
+    root.setLevel(level)
+
+
+def test_libraries_stay_at_warning_unless_debug() -> None:
+    configure_logging("info")
+    assert logging.getLogger("asyncua").getEffectiveLevel() == logging.WARNING
+    assert logging.getLogger("asyncua.client.ua_client").getEffectiveLevel() == logging.WARNING
+    assert logging.getLogger("plantcheck.connectors").getEffectiveLevel() == logging.INFO
+    configure_logging("debug")
+    assert logging.getLogger("asyncua").getEffectiveLevel() == logging.DEBUG
+    configure_logging("error")
+    assert logging.getLogger("pymodbus").getEffectiveLevel() == logging.ERROR
+
+
+def test_json_lines(capsys: pytest.CaptureFixture[str]) -> None:
+    configure_logging("info", "json")
+    logging.getLogger("plantcheck.test").warning("source %s down", "plc1")
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    record = json.loads(line)
+    assert record["level"] == "warning" and record["message"] == "source plc1 down"
+    assert record["logger"] == "plantcheck.test" and record["time"].endswith("Z")
+
+
+def test_cli_takes_the_options(run_cli: RunCli) -> None:
+    r = run_cli("--log-level", "warning", "--log-format", "json", "--version")
+    assert r.returncode == 0 and "plantcheck" in r.stdout
+    bad = run_cli("--log-level", "loud", "oscillation", "x.csv", "--column", "op")
+    assert bad.returncode == 2 and "--log-level" in bad.stderr
