@@ -1,1 +1,2 @@
-"""connectors (built by a later issue)."""
+"""Connectors: one module per plant protocol (Modbus TCP, OPC UA), one task per device with
+back-off; they only read from the plant."""

@@ -11,21 +11,24 @@ import json
 import sys
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
 
 from plantcheck import __version__
-from plantcheck.diagnosis import Diagnosis, detect_oscillation, diagnose, diagnose_advanced
-from plantcheck.diagnosis.oscillation import SPECTRAL, oscillations_json
-from plantcheck.diagnosis.result import json_safe
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_run import demo_cmd, run_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
 from plantcheck.service.logs import LogOptions
 from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
+
+if TYPE_CHECKING:
+    from plantcheck.diagnosis import Diagnosis
+
+# The diagnosis library (numpy, scipy.signal: about 0.8 s) is imported by the commands that
+# diagnose, so that `plantcheck --version`, `--help` and the service commands start at once.
 
 DEFAULT_MAX_SAMPLES = 200_000
 
@@ -175,6 +178,8 @@ def diagnose_cmd(
     ] = DEFAULT_MAX_SAMPLES,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
+    from plantcheck.diagnosis import diagnose, diagnose_advanced
+
     rec = _load(file, sample_time, ("pv", "op"))
     sl, extra = _tail(rec, max_samples)
     pv = rec.signals["pv"][sl]
@@ -211,6 +216,10 @@ def oscillation_cmd(
     """Test one signal for a sustained oscillation (Hägglund + Thornhill, then the band-passed
     spectral peaks for irregular and multiple oscillations, then the few-cycle test for slow
     records) and list every oscillation found."""
+    from plantcheck.diagnosis import detect_oscillation
+    from plantcheck.diagnosis.oscillation import SPECTRAL, oscillations_json
+    from plantcheck.diagnosis.result import json_safe
+
     name = column.strip().lower()
     if name not in ("sp", "pv", "op", "mv"):
         raise fail(f"--column must be one of sp, pv, op, mv, not {column!r}")

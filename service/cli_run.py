@@ -12,18 +12,17 @@ import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
-import uvicorn
 
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_store import ConfigOpt, _config
 from plantcheck.service.config import Config
 from plantcheck.service.logs import configure_for_command
-from plantcheck.storage.database import StorageError, upgrade
-from plantcheck.storage.results import loop_statuses
-from plantcheck.storage.store import Store
+
+# uvicorn and the store (SQLAlchemy, alembic: about 0.4 s) are imported when a command runs,
+# so that the command line itself starts at once (issue 29)
 
 
 def _check_port(host: str, port: int, what: str) -> None:
@@ -37,6 +36,9 @@ def _check_port(host: str, port: int, what: str) -> None:
 
 
 async def _check_store(cfg: Config, hint: str) -> None:
+    from plantcheck.storage.database import StorageError
+    from plantcheck.storage.store import Store
+
     try:
         store = await Store.open(cfg.storage.url, config_hint=hint)
     except StorageError as exc:
@@ -44,32 +46,39 @@ async def _check_store(cfg: Config, hint: str) -> None:
     await store.close()
 
 
-class _Server(uvicorn.Server):
+def _server(config: object) -> Any:
     """uvicorn's server, stopping on SIGINT/SIGTERM without re-raising the signal afterwards
     (uvicorn does), so the caller's clean-up (the demo's simulator process) still runs."""
+    import uvicorn
 
-    @contextlib.contextmanager
-    def capture_signals(self) -> Iterator[None]:
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, self._stop_on_signal)
-        try:
-            yield
-        finally:
+    class _Server(uvicorn.Server):
+        @contextlib.contextmanager
+        def capture_signals(self) -> Iterator[None]:
+            loop = asyncio.get_running_loop()
             for sig in (signal.SIGINT, signal.SIGTERM):
-                loop.remove_signal_handler(sig)
+                loop.add_signal_handler(sig, self._stop_on_signal)
+            try:
+                yield
+            finally:
+                for sig in (signal.SIGINT, signal.SIGTERM):
+                    loop.remove_signal_handler(sig)
 
-    def _stop_on_signal(self) -> None:
-        if self.should_exit:
-            self.force_exit = True
-        self.should_exit = True
+        def _stop_on_signal(self) -> None:
+            if self.should_exit:
+                self.force_exit = True
+            self.should_exit = True
+
+    return _Server(config)  # type: ignore[arg-type]
 
 
 def _serve(cfg: Config, hint: str, progress: float | None, duration: float | None) -> None:
+    import uvicorn
+
     from plantcheck.service.app import build_app
+    from plantcheck.storage.results import loop_statuses
 
     app = build_app(cfg, hint)
-    server = _Server(uvicorn.Config(app, host=cfg.api.host, port=cfg.api.port, log_level="warning"))
+    server = _server(uvicorn.Config(app, host=cfg.api.host, port=cfg.api.port, log_level="warning"))
 
     async def report() -> None:
         t0 = time.monotonic()
@@ -128,6 +137,8 @@ def run_cmd(
     cfg = cfg.model_copy(update={"api": api})
     hint = f" --config {config}" if config else ""
     if migrate:
+        from plantcheck.storage.database import upgrade
+
         upgrade(cfg.storage.url)
     asyncio.run(_check_store(cfg, hint))
     _check_port(cfg.api.host, cfg.api.port, "set [api] port in the configuration or use --port")
@@ -203,6 +214,8 @@ def demo_cmd(
         cfg_path = data_dir / "plantcheck.toml"
         cfg_path.write_text(demo_config(data_dir, port, opcua_url, speed), encoding="utf-8")
         cfg = load_config(cfg_path)
+        from plantcheck.storage.database import upgrade
+
         upgrade(cfg.storage.url)
         sim = subprocess.Popen(
             [

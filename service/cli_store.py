@@ -15,10 +15,7 @@ from plantcheck.service.config import Config, load_config
 from plantcheck.service.logs import configure_for_command
 from plantcheck.service.records import RecordError, read_record
 from plantcheck.service.toml_config import ConfigError
-from plantcheck.storage.database import StorageError, upgrade
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import BAD_DATA_ENCODING_INVALID, GOOD
-from plantcheck.storage.store import Store
+from plantcheck.storage.errors import StorageError
 
 db_app = typer.Typer(help="Database schema (Alembic migrations).", no_args_is_help=True)
 
@@ -39,6 +36,8 @@ def _config(path: Path | None) -> Config:
 @db_app.command("upgrade")
 def db_upgrade(config: ConfigOpt = None) -> None:
     """Create or migrate the database named in the configuration to the newest schema."""
+    from plantcheck.storage.database import upgrade
+
     cfg = _config(config)
     try:
         rev = upgrade(cfg.storage.url)
@@ -62,6 +61,10 @@ def import_cmd(
         raise fail(str(exc)) from None
     if rec.start_epoch_s is None:
         raise fail(f"{file}: needs a timestamp column (ISO 8601) to be stored at its real time")
+
+    from plantcheck.storage.samples import Sample
+    from plantcheck.storage.status_codes import BAD_DATA_ENCODING_INVALID, GOOD
+    from plantcheck.storage.store import Store
 
     async def run() -> int:
         store = await Store.open(cfg.storage.url, config_hint=str(config or "plantcheck.toml"))

@@ -18,11 +18,11 @@ from sqlalchemy import event, text
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.ext.asyncio import AsyncEngine, create_async_engine
 
+from plantcheck.storage.errors import StorageError
+
 MIGRATIONS = Path(__file__).with_name("migrations")
 
-
-class StorageError(RuntimeError):
-    """The store cannot be used; the message names the problem and the fix."""
+__all__ = ["MIGRATIONS", "StorageError", "upgrade"]
 
 
 def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:
