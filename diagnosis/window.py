@@ -34,8 +34,11 @@ class WindowParams:
     """Less automatic-mode time than this -> ``manual_mode`` (methods §1.2)."""
     quantised_unique_fraction: float = 0.2
     """PV with fewer distinct values than this fraction is quantised or compressed (§1.3, [V])."""
-    quantised_min_levels: int = 8
-    """PV with fewer distinct levels than this cannot be judged -> ``data_quality``."""
+    quantised_min_levels: int = 4
+    """PV with fewer distinct levels than this cannot be judged -> ``data_quality``. A healthy
+    loop held within ±2 steps of a coarse historian shows 5-7 levels in a window: still
+    judged, with the quantisation noted (generated windows: 4 such healthy loops were refused
+    at 8) [R]."""
     frozen_fraction: float = 0.98
     """Share of unchanged consecutive PV samples above which the sensor is frozen."""
     saturation_band: float = 2.0

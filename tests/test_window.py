@@ -46,6 +46,10 @@ def test_frozen_and_quantised_pv() -> None:
     assert check_window(np.full(N, 3.0), OP).verdict == "data_quality"
     coarse = np.round(PV / 5) * 5  # only a few levels
     assert check_window(coarse, OP).verdict == "data_quality"
+    # a steady loop on a coarse historian: five levels are still judged, with a note
+    steady = 50 + np.round(RNG.normal(0, 0.8, N))
+    rep = check_window(steady, OP, np.full(N, 50.0))
+    assert rep.verdict is None and rep.quantised, rep.notes
 
 
 def _tracking(sp: np.ndarray, tau: float = 50.0) -> np.ndarray:
