@@ -2,10 +2,17 @@
 
 Monitored items sample at ``sampling_interval_s`` with no deadband (raw samples: the diagnosis
 needs them) and a queue sized for the publishing interval, so no sample between two publish
-responses is lost. The client runs with ``auto_reconnect``: on a lost connection asyncua
-re-establishes the session and re-creates the subscriptions; plantcheck stores a gap marker at
-the loss. Source timestamps are kept (server timestamp, then receive time, when a server sends
-none); a Bad status is stored with no value.
+responses is lost. Source timestamps are kept (server timestamp, then receive time, when a
+server sends none); a Bad status is stored with no value.
+
+The connector owns its session (issue 27). asyncua's ``auto_reconnect`` could fail to restore a
+subscription after a server stall of 10-20 s ("Failed to restore subscription"), keep an empty
+one and stay silent for good while the server state still read fine. Here a lost connection
+(asyncua's own health probe) ends the session: ``run()`` stores a gap marker and builds a new
+client, session, subscription and monitored items with back-off. A data watchdog covers what
+the probe cannot see: when no data change arrived for ``watchdog_s``, the tags are read once;
+a read that fails, or source times newer than the last ones received, mean the subscription is
+dead, and the session is rebuilt the same way (constant tags, which report nothing, pass).
 """
 
 from __future__ import annotations
@@ -72,6 +79,7 @@ class OpcUaConnector(DeviceConnector):
         sampling_interval_s: float = 1.0,
         mode: str = "subscribe",
         timeout_s: float = 4.0,
+        watchdog_s: float | None = None,
         **kw: float,
     ) -> None:
         super().__init__(name, sink, [t for t, _ in tags], held=(), **kw)  # changes only already
@@ -83,15 +91,51 @@ class OpcUaConnector(DeviceConnector):
         self.timeout_s = timeout_s
         self.client: Client | None = None
         self.polling = mode == "poll"
+        publish_s = max(sampling_interval_s, 0.5)
+        self.watchdog_s = watchdog_s if watchdog_s is not None else max(5.0, 5 * publish_s)
+        """No data change for this long (s) -> read the tags to check the subscription."""
+        self._lost_exc: Exception | None = None
+        self._last_data_us = 0
+        self._last_ts: dict[int, int] = {}
+        """Per tag, the newest source time (µs) received."""
 
     async def _lost(self, exc: Exception) -> None:
-        self._failed(exc)
+        self._lost_exc = exc
 
     async def connect(self) -> None:
-        client = Client(self.url, timeout=self.timeout_s, auto_reconnect=True)
+        # the session is ours: a loss ends it and run() builds a new one (module docstring)
+        client = Client(self.url, timeout=self.timeout_s, auto_reconnect=False)
         client.connection_lost_callback = self._lost
+        self._lost_exc = None
         await client.connect()
         self.client = client
+        self._last_data_us = now_us()
+
+    def emit(self, rows: Sequence[Sample]) -> None:
+        self._last_data_us = now_us()
+        for r in rows:
+            if r.ts_us > self._last_ts.get(r.tag_id, 0):
+                self._last_ts[r.tag_id] = r.ts_us
+        super().emit(rows)
+
+    async def _check_subscription(self) -> None:
+        """Raise when the subscription has gone silent while the tags still change."""
+        assert self.client is not None
+        params = ua.ReadParameters()
+        params.NodesToRead = [
+            ua.ReadValueId(NodeId=n, AttributeId=ua.AttributeIds.Value) for _, n in self.nodes
+        ]
+        params.TimestampsToReturn = ua.TimestampsToReturn.Both
+        dvs = await asyncio.wait_for(self.client.uaclient.read(params), self.timeout_s)
+        recv = now_us()
+        late = int(self.watchdog_s * 1e6)
+        for (tid, _), dv in zip(self.nodes, dvs, strict=True):
+            sample = to_sample(tid, dv, recv)
+            if sample.ts_us > self._last_ts.get(tid, 0) + late:
+                raise ConnectionError(
+                    f"subscription silent for {self.watchdog_s:g} s while the values change"
+                )
+        self._last_data_us = recv  # constant values: nothing to report, the session is alive
 
     async def _subscribe(self) -> None:
         assert self.client is not None
@@ -140,13 +184,11 @@ class OpcUaConnector(DeviceConnector):
                 await self._poll_once()
             if not await self.sleep(self.sampling_interval_s if self.polling else 1.0):
                 return
-            if self.state.failing_since_us is not None and self.client is not None:
-                # asyncua reconnects on its own; notice it here to log the recovery once
-                with contextlib.suppress(Exception):
-                    await asyncio.wait_for(
-                        self.client.nodes.server_state.read_value(), self.timeout_s
-                    )
-                    self._recovered()
+            if self._lost_exc is not None:
+                raise self._lost_exc
+            silent_s = (now_us() - self._last_data_us) / 1e6
+            if not self.polling and silent_s > self.watchdog_s:
+                await self._check_subscription()
 
     async def close(self) -> None:
         if self.client is not None:

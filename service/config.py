@@ -131,7 +131,7 @@ class SourceConfig(_Strict):
     byte_order: Literal["big", "little"] = "big"
     url: str = ""
     """OPC UA endpoint, ``opc.tcp://HOST:PORT/path``."""
-    poll_interval_s: float = Field(1.0, ge=0.05, le=3600)
+    poll_interval_s: float = Field(1.0, ge=0.01, le=3600)
     """Modbus poll period, OPC UA sampling interval (s)."""
     timeout_s: float = Field(2.0, gt=0, le=60)
     mode: Literal["subscribe", "poll"] = "subscribe"

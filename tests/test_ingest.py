@@ -198,3 +198,32 @@ def test_postgresql_outage_loses_no_sample(pg_cluster: PgCluster, tmp_path: Path
         assert stored == ing.writer.stats.received  # every sample is there, once
 
     _run(pg_cluster.url, sc, tmp_path, "modbus", body)
+
+
+STALL_S = 15.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("speed", [1.0, 5.0])
+def test_opcua_ingest_resumes_after_a_server_stall(tmp_path: Path, speed: float) -> None:
+    """Issue 27: after a 15-s stall asyncua's auto-reconnect could restore no subscription and
+    stay silent for good. The connector owns its session and watches the data: a gap marker
+    covers the stall and samples flow again."""
+    url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    upgrade(url)
+    sc = scenario_on_free_ports(speed=speed)
+    sc = sc.model_copy(update={"modbus": sc.modbus.model_copy(update={"enabled": False})})
+
+    async def body(ing: Ingestion, runner: PlantRunner, task: asyncio.Task[None]) -> None:
+        await _rows_until(ing, "FIC102", "pv", lambda rows: len(rows) >= 5)
+        answer = await send_admin("127.0.0.1", sc.admin.port, f"stall {STALL_S:g} opcua")
+        assert "stall" in answer, answer
+        await asyncio.sleep(STALL_S)
+        rows = await _rows_until(
+            ing, "FIC102", "pv", lambda rows: len(_after_gap(rows)) >= 10, timeout_s=60
+        )
+        assert any(r[4] == BAD_NO_COMMUNICATION for r in rows)
+        source = ing.connectors[0]
+        assert source.state.connected and source.state.failing_since_us is None
+
+    _run(url, sc, tmp_path, "opcua", body)
