@@ -5,7 +5,9 @@ A connector module (one per protocol) subclasses ``DeviceConnector`` and impleme
 ``connect``, ``collect`` and ``close``. ``run()`` keeps one device alive on its own task: it
 polls or waits for subscriptions, and on a failure it marks a gap (a Bad
 ``BAD_NO_COMMUNICATION`` sample with no value for every tag), closes, and reconnects with
-exponential backoff and jitter. A failing device never slows the others.
+exponential backoff and jitter; the device is back (and the back-off reset) at its first data,
+not at connect, so one that accepts connections but does not answer backs off further. A
+failing device never slows the others.
 
 Held tags (a polled source's SP and mode, which keep their value between samples) are passed on
 only when their value or status changes, again after every gap marker, and at least every
@@ -75,6 +77,8 @@ class DeviceConnector(ABC):
         self._stop = asyncio.Event()
         self._gap_us = 0
         self._after_gap: set[int] = set()
+        self._delay = backoff_initial_s
+        """Current reconnection back-off, s."""
         self.held = frozenset(held)
         """Tags passed on only when they change (see the module docstring)."""
         self._held_last: dict[int, tuple[float | None, int, int]] = {}
@@ -99,6 +103,11 @@ class DeviceConnector(ABC):
             rows = [self._not_before_gap(r) for r in rows]
         self.state.samples += len(rows)
         self.state.last_success_us = now_us()
+        if not self.state.connected:
+            # back only once data flows: a device that accepts connections but does not
+            # answer keeps failing, and its back-off keeps growing
+            self._recovered()
+            self._delay = self.backoff_initial_s
         self.sink(rows)
 
     def mark_gap(self) -> None:
@@ -154,13 +163,12 @@ class DeviceConnector(ABC):
         self.state.connected = True
 
     async def run(self) -> None:
-        """Connect, collect, reconnect with backoff, until ``stop()``."""
-        delay = self.backoff_initial_s
+        """Connect, collect, reconnect with backoff, until ``stop()``. The device counts as
+        back (logged once, back-off reset) at its first data, not at connect."""
+        self._delay = self.backoff_initial_s
         while not self._stop.is_set():
             try:
                 await self.connect()
-                self._recovered()
-                delay = self.backoff_initial_s
                 await self.collect()
             except asyncio.CancelledError:
                 raise
@@ -173,8 +181,8 @@ class DeviceConnector(ABC):
                 await self.close()
             if self._stop.is_set():
                 break
-            wait = delay * random.uniform(0.8, 1.2)
-            delay = min(delay * 2, self.backoff_max_s)
+            wait = self._delay * random.uniform(0.8, 1.2)
+            self._delay = min(self._delay * 2, self.backoff_max_s)
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._stop.wait(), wait)
 

@@ -227,3 +227,29 @@ def test_opcua_ingest_resumes_after_a_server_stall(tmp_path: Path, speed: float)
         assert source.state.connected and source.state.failing_since_us is None
 
     _run(url, sc, tmp_path, "opcua", body)
+
+
+@pytest.mark.slow
+def test_a_stalled_modbus_device_is_logged_once_and_backs_off(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Issue 27: a device that accepts TCP but does not answer logged 'unavailable'/'back'
+    every 2.5 s (the back-off reset on connect). Back counts at the first data: one failure
+    line, one recovery line, a gap marker, and samples again after the stall."""
+    url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    upgrade(url)
+    sc = scenario_on_free_ports(speed=5.0)
+    sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"enabled": False})})
+    caplog.set_level("INFO", logger="plantcheck.connectors")
+
+    async def body(ing: Ingestion, runner: PlantRunner, task: asyncio.Task[None]) -> None:
+        await _rows_until(ing, "FIC102", "pv", lambda rows: len(rows) >= 5)
+        await send_admin("127.0.0.1", sc.admin.port, "stall 12 modbus")
+        await asyncio.sleep(12.0)
+        await _rows_until(ing, "FIC102", "pv", lambda rows: len(_after_gap(rows)) >= 5, 60)
+        messages = [r.getMessage() for r in caplog.records if r.name == "plantcheck.connectors"]
+        assert sum("unavailable" in m for m in messages) == 1, messages
+        assert sum("back after" in m for m in messages) == 1, messages
+        assert ing.connectors[0].state.failures >= 2  # it kept trying, further apart
+
+    _run(url, sc, tmp_path, "modbus", body)
