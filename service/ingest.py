@@ -7,11 +7,12 @@ import contextlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from plantcheck.connectors.base import DeviceConnector, SampleSink
+from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
 from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
 from plantcheck.connectors.opcua import OpcUaConnector
 from plantcheck.service.config import Config
 from plantcheck.storage.samples import Sample
+from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
 from plantcheck.storage.writer import SampleWriter
@@ -72,6 +73,26 @@ def build_connectors(
     return out
 
 
+async def restart_gaps(store: Store, writer: SampleWriter, tag_ids: Sequence[int]) -> list[Sample]:
+    """Gap markers that close what a crash left open (issue 27).
+
+    After ``kill -9`` the newest sample of a tag (stored, or still in the durable buffer) is a
+    value, not a gap marker: the windows would hold it across the dead time. A marker just
+    after it (1 µs later) says nothing is known from there until the first new sample.
+    """
+    wanted = set(tag_ids)
+    newest = await store.newest_samples(tag_ids)
+    for tid, (ts, st) in writer.buffer.newest().items():
+        if tid in wanted and (tid not in newest or ts > newest[tid][0]):
+            newest[tid] = (ts, st)
+    now = now_us()
+    return [
+        Sample(tid, ts + 1, now, None, BAD_NO_COMMUNICATION)
+        for tid, (ts, st) in newest.items()
+        if st != BAD_NO_COMMUNICATION
+    ]
+
+
 class Ingestion:
     """Store, sample writer and connectors of one configuration, running together."""
 
@@ -104,6 +125,8 @@ class Ingestion:
             commit_interval_s=cfg.storage.commit_interval_s,
             retention_s=cfg.storage.retention_days * 86400.0,
         )
+        tag_ids = [t for lp in loops.values() for t in lp.tags.values()]
+        writer.put(await restart_gaps(store, writer, tag_ids))
         writer.start()
         sink: SampleSink = writer.put
         if on_samples is not None:

@@ -60,6 +60,14 @@ class DurableBuffer:
             return 0, []
         return int(rows[-1][0]), [Sample(*r[1:]) for r in rows]
 
+    def newest(self) -> dict[int, tuple[int, int]]:
+        """Per tag, the source time (µs) and status of its newest buffered sample."""
+        cur = self._db.execute(
+            "SELECT tag_id, ts_us, status FROM pending p WHERE ts_us = "
+            "(SELECT max(ts_us) FROM pending q WHERE q.tag_id = p.tag_id)"
+        )
+        return {int(t): (int(ts), int(st)) for t, ts, st in cur.fetchall()}
+
     def remove_through(self, seq: int) -> None:
         """Forget every sample up to ``seq`` (after they were stored)."""
         cur = self._db.execute("DELETE FROM pending WHERE seq <= ?", (seq,))

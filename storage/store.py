@@ -344,6 +344,23 @@ class Store:
                     out[sig] = np.nan if row[0] is None else float(row[0])
         return out
 
+    async def newest_samples(self, tag_ids: Sequence[int]) -> dict[int, tuple[int, int]]:
+        """Per tag, the source time (µs) and status of its newest stored sample."""
+        if not tag_ids:
+            return {}
+        newest = (
+            select(samples.c.tag_id, func.max(samples.c.ts_us).label("ts"))
+            .where(samples.c.tag_id.in_(list(tag_ids)))
+            .group_by(samples.c.tag_id)
+            .subquery()
+        )
+        q = select(samples.c.tag_id, samples.c.ts_us, samples.c.status).join(
+            newest, and_(samples.c.tag_id == newest.c.tag_id, samples.c.ts_us == newest.c.ts)
+        )
+        async with self.engine.connect() as conn:
+            rows = (await conn.execute(q)).all()
+        return {int(t): (int(ts), int(st)) for t, ts, st in rows}
+
     async def latest_sample_us(self, loop: LoopRow, signal: str | None = None) -> int | None:
         """Source timestamp of the loop's newest stored sample (of ``signal`` only, if given)."""
         span = await self.sample_span_us(loop, signal)
