@@ -12,13 +12,15 @@ from collections.abc import Callable
 from contextlib import AbstractAsyncContextManager
 from pathlib import Path
 
-from fastapi import FastAPI
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
 from plantcheck.api.loop_table import LoopTable
 from plantcheck.service.config import ApiConfig
+from plantcheck.storage.errors import store_outage_errors
 
 Lifespan = Callable[[FastAPI], AbstractAsyncContextManager[None]]
 
@@ -46,4 +48,20 @@ def create_app(api_config: ApiConfig, lifespan: Lifespan) -> FastAPI:
     app.include_router(health.router)
     app.include_router(web.router)
     app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")
+    for exc_type in store_outage_errors():
+        app.add_exception_handler(exc_type, _store_unavailable)
     return app
+
+
+RETRY_AFTER_S = 30
+"""Seconds a client should wait before retrying while the store is unreachable."""
+
+
+async def _store_unavailable(request: Request, exc: Exception) -> JSONResponse:
+    """The database is unreachable: 503 with Retry-After, not a 500 and a traceback (issue 27).
+    The samples keep going to the durable buffer meanwhile."""
+    return JSONResponse(
+        {"detail": f"the store is unreachable ({type(exc).__name__}); retry in a moment"},
+        status_code=503,
+        headers={"Retry-After": str(RETRY_AFTER_S)},
+    )
