@@ -118,15 +118,19 @@ class OpcUaConnector(DeviceConnector):
                 self._last_ts[r.tag_id] = r.ts_us
         super().emit(rows)
 
-    async def _check_subscription(self) -> None:
-        """Raise when the subscription has gone silent while the tags still change."""
+    async def _read_all(self) -> list[Any]:
+        """One read of every tag's value with both timestamps (DataValues, in tag order)."""
         assert self.client is not None
         params = ua.ReadParameters()
         params.NodesToRead = [
             ua.ReadValueId(NodeId=n, AttributeId=ua.AttributeIds.Value) for _, n in self.nodes
         ]
         params.TimestampsToReturn = ua.TimestampsToReturn.Both
-        dvs = await asyncio.wait_for(self.client.uaclient.read(params), self.timeout_s)
+        return list(await asyncio.wait_for(self.client.uaclient.read(params), self.timeout_s))
+
+    async def _check_subscription(self) -> None:
+        """Raise when the subscription has gone silent while the tags still change."""
+        dvs = await self._read_all()
         recv = now_us()
         late = int(self.watchdog_s * 1e6)
         for (tid, _), dv in zip(self.nodes, dvs, strict=True):
@@ -162,13 +166,7 @@ class OpcUaConnector(DeviceConnector):
             log.error("%s: %d node(s) could not be monitored: %s", self.name, len(bad), bad[0])
 
     async def _poll_once(self) -> None:
-        assert self.client is not None
-        params = ua.ReadParameters()
-        params.NodesToRead = [
-            ua.ReadValueId(NodeId=n, AttributeId=ua.AttributeIds.Value) for _, n in self.nodes
-        ]
-        params.TimestampsToReturn = ua.TimestampsToReturn.Both
-        dvs = await self.client.uaclient.read(params)
+        dvs = await self._read_all()
         recv = now_us()
         self.emit([to_sample(tid, dv, recv) for (tid, _), dv in zip(self.nodes, dvs, strict=True)])
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from plantcheck.diagnosis.result import CAUSES
 from plantcheck.simulator.cases import (
     PROCESSES,
     Case,
@@ -24,15 +25,9 @@ from plantcheck.simulator.cases import (
 )
 from plantcheck.simulator.loop import Disturbance, LoopConfig, Process
 
-CLASSES = (
-    "ok",
-    "stiction",
-    "aggressive_tuning",
-    "sluggish_tuning",
-    "external_disturbance",
-    "saturation",
-)
-"""The causes every family holds."""
+CLASSES = CAUSES[:6]
+"""The causes every family holds: the contract's first six (ok, stiction, aggressive and
+sluggish tuning, external disturbance, saturation), the ones a loop can be built to show."""
 
 LENGTHS = (2000, 3600, 6000)
 """Window lengths in samples (the independent simulator of issue 25 used 2,000-6,000)."""

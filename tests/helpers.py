@@ -5,9 +5,13 @@ from __future__ import annotations
 import socket
 import subprocess
 from collections.abc import Callable
+from pathlib import Path
+
+import pytest
 
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.config import Config, LoopConfig, SourceConfig
+from plantcheck.service.toml_config import ConfigError
 from plantcheck.storage.results import Verdict
 from plantcheck.storage.store import LoopRow
 
@@ -55,3 +59,24 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def case_folders(name: str) -> list[Path]:
+    """The case folders of ``tests/NAME`` (Telegraf style: one input file and the
+    ``expected_error.txt`` it must be refused with; empty: it is valid)."""
+    root = Path(__file__).parent / name
+    return sorted(p for p in root.iterdir() if p.is_dir())
+
+
+def check_refusal(path: Path, expected: str, load: Callable[[Path], object]) -> None:
+    """``load(path)`` succeeds when ``expected`` is empty, else raises ``ConfigError`` with
+    one line that starts with the file and holds ``expected``."""
+    if not expected:
+        load(path)
+        return
+    with pytest.raises(ConfigError) as info:
+        load(path)
+    message = str(info.value)
+    assert message.startswith(str(path)), message
+    assert expected in message, message
+    assert "\n" not in message
