@@ -40,7 +40,6 @@ __all__ = [
     "faster_oscillation",
     "hagglund_loads",
     "oscillations_json",
-    "spectral_oscillation",
     "thornhill_regularity",
 ]
 
@@ -374,25 +373,6 @@ def _composite_reason(
     if not enough_loads:
         return f"only {loads} half-cycles above the acceptable amplitude ({loads_needed})"
     return f"oscillation band holds only {100 * band_power:.0f} % of the variance"
-
-
-def spectral_oscillation(
-    x: FloatArray, ts: float, params: OscillationParams | None = None
-) -> OscillationResult | None:
-    """The dominant oscillation of the spectral stage alone (``spectral_peaks``), or the best
-    peak with why it is none; None when the spectrum has no peak. ``x`` detrended, no NaN."""
-    p = params or OscillationParams()
-    peaks = _spectral_peaks(x, ts, p)
-    if not peaks:
-        return None
-    pk = peaks[0]
-    empty = OscillationResult(False, None, None, None, 0, 0.0, noise_sigma(x), "")
-    if pk.oscillating:
-        return _from_peak(pk, empty, peaks)
-    return OscillationResult(
-        False, pk.period_s, pk.amplitude, pk.regularity, 0, pk.power_share, empty.noise_sigma,
-        pk.reason,
-    )  # fmt: skip
 
 
 def faster_oscillation(
