@@ -258,7 +258,7 @@ def diagnose(
             # moves and slips against it (index <= 0), unless it does not move at all. Between
             # set-point steps the index reads the tail of a step response, which creeps toward
             # SP in any loop: there it cannot overrule the events.
-            after_steps = bool(win.indices.get("sp_steps"))
+            after_steps = bool(win.steps)
             if not sluggish or events.unresponsive is not None or after_steps:
                 _stiction_from_events(diag, events, win.pv, win.op, gain_sign)
                 return diag

@@ -171,26 +171,19 @@ def dominant_period(x: FloatArray, ts: float) -> float:
     return float(x.size * ts / k)
 
 
-def _band_power(x: FloatArray, ts: float, period_s: float, noise_sigma: float = 0.0) -> float:
-    """Share of the variance of ``x`` above f_osc/4 that lies within [0.5, 2]·f_osc, once the
-    white measurement noise (σ = ``noise_sigma``, a flat floor of n·σ² per periodogram bin) is
-    taken out of both.
+def _band_power(x: FloatArray, ts: float, period_s: float) -> float:
+    """Share of the variance of ``x`` above f_osc/4 that lies within [0.5, 2]·f_osc.
 
     Slow wander of the operating point (below a quarter of the oscillation frequency) is left
-    out of the reference, so that it does not hide a clear oscillation; the noise floor is left
-    out so that a small limit cycle in a noisy measurement keeps its share.
+    out of the reference, so that it does not hide a clear oscillation.
     """
     spec = np.abs(np.fft.rfft(x - x.mean())) ** 2
     f = np.fft.rfftfreq(x.size, ts)
     f0 = 1.0 / period_s
-    floor = x.size * noise_sigma**2
-    above = f >= 0.25 * f0
-    in_band = (f >= 0.5 * f0) & (f <= 2.0 * f0)
-    total = float(spec[above].sum()) - floor * int(above.sum())
+    total = float(spec[f >= 0.25 * f0].sum())
     if total <= 0:
         return 0.0
-    band = float(spec[in_band].sum()) - floor * int(in_band.sum())
-    return float(np.clip(band / total, 0.0, 1.0))
+    return float(spec[(f >= 0.5 * f0) & (f <= 2.0 * f0)].sum()) / total
 
 
 def detect_oscillation(

@@ -91,6 +91,12 @@ class WindowReport:
     """Samples at which the set point steps (their responses feed the tuning verdict)."""
 
 
+def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
+    """[start, stop) of each run of True in ``mask``."""
+    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
 def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
     """Fill NaN runs: runs of <= ``max_gap`` forward-filled, longer ones linearly interpolated.
 
@@ -102,10 +108,7 @@ def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
     good_idx = np.flatnonzero(~bad)
     if good_idx.size == 0:
         return x, int(x.size)
-    # run lengths of NaN
-    edges = np.diff(np.concatenate(([0], bad.astype(np.int8), [0])))
-    run_start = np.flatnonzero(edges == 1)
-    run_stop = np.flatnonzero(edges == -1)
+    run_start, run_stop = _runs(bad)
     longest = int((run_stop - run_start).max())
     idx = np.arange(x.size)
     filled = np.interp(idx, good_idx, x[good_idx])
@@ -264,8 +267,9 @@ def check_window(
         notes.append("set point moves slowly (cascade or ramp): analysed the control error")
     usable = ~clamp.mask
     settling: list[int] = []
+    sigma_e = noise_sigma(e_f)
     for k in steps.tolist():
-        end = _settled(e_f, k, float(sp_f[k] - sp_f[k - 1]), p)
+        end = _settled(e_f, k, float(sp_f[k] - sp_f[k - 1]), sigma_e, p)
         settling.append(end - k)
         usable[k:end] = False
     segment = _longest_usable(usable, steps)
@@ -308,12 +312,6 @@ class Clamp:
     limit: float | None
 
 
-def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
-    """[start, stop) of each run of True in ``mask``."""
-    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-
-
 def _clamped(op: FloatArray, e: FloatArray, p: WindowParams) -> Clamp:
     """Samples where OP rests at an output limit while PV is off set point.
 
@@ -329,9 +327,10 @@ def _clamped(op: FloatArray, e: FloatArray, p: WindowParams) -> Clamp:
     pin = min(p.saturation_pin, 0.05 * op_pp) if op_pp > 0 else 0.0
     mask = np.zeros(n, dtype=bool)
     limits: list[tuple[float, float]] = []
+    op_hi, op_lo = float(np.max(op)), float(np.min(op))
     for extreme, near_end in (
-        (float(np.max(op)), float(np.max(op)) >= 100.0 - p.saturation_band),
-        (float(np.min(op)), float(np.min(op)) <= p.saturation_band),
+        (op_hi, op_hi >= 100.0 - p.saturation_band),
+        (op_lo, op_lo <= p.saturation_band),
     ):
         if near_end:
             side = np.abs(op - extreme) <= pin
@@ -355,16 +354,16 @@ def _clamped(op: FloatArray, e: FloatArray, p: WindowParams) -> Clamp:
     return Clamp(mask, float(np.mean(mask)), limit)
 
 
-def _settled(e: FloatArray, k: int, step: float, p: WindowParams) -> int:
+def _settled(e: FloatArray, k: int, step: float, sigma_e: float, p: WindowParams) -> int:
     """First sample after the set-point step at ``k`` (size ``step``) where the control error,
-    lightly smoothed, is back within ``settle_fraction`` of the step or 3 noise σ: the step
-    response read from the data, whatever the loop's speed."""
+    lightly smoothed, is back within ``settle_fraction`` of the step or 3 noise σ (``sigma_e``,
+    the error's): the step response read from the data, whatever the loop's speed."""
     tail = e[k:]
     if tail.size == 0:
         return k
     width = 5
     smooth = np.convolve(tail, np.ones(width) / width, mode="same") if tail.size > width else tail
-    band = max(p.settle_fraction * abs(step), 3.0 * noise_sigma(e))
+    band = max(p.settle_fraction * abs(step), 3.0 * sigma_e)
     inside = np.flatnonzero(np.abs(smooth) <= band)
     return k + (int(inside[0]) if inside.size else int(tail.size))
 
