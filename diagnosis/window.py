@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray, noise_sigma
+from plantcheck.diagnosis.signal_tools import FloatArray, moving_average, noise_sigma
 
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
@@ -361,8 +361,7 @@ def _settled(e: FloatArray, k: int, step: float, sigma_e: float, p: WindowParams
     tail = e[k:]
     if tail.size == 0:
         return k
-    width = 5
-    smooth = np.convolve(tail, np.ones(width) / width, mode="same") if tail.size > width else tail
+    smooth = moving_average(tail, 5)
     band = max(p.settle_fraction * abs(step), 3.0 * sigma_e)
     inside = np.flatnonzero(np.abs(smooth) <= band)
     return k + (int(inside[0]) if inside.size else int(tail.size))
