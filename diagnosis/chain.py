@@ -208,13 +208,24 @@ def diagnose(
         return diag
 
     a, b = win.segment
+    osc = detect_oscillation(win.sp[a:b] - win.pv[a:b], ts, p.oscillation)
+    if not osc.oscillating:
+        # Between set-point steps each settled stretch is a window of its own: a limit cycle
+        # that the longest stretch happens to hide (a load change there) shows in another.
+        for a2, b2 in win.segments[1:]:
+            osc2 = detect_oscillation(win.sp[a2:b2] - win.pv[a2:b2], ts, p.oscillation)
+            if osc2.oscillating:
+                a, b, osc = a2, b2, osc2
+                diag.notes.append(
+                    f"the oscillation shows in the settled stretch {a}-{b} ({b - a} samples)"
+                )
+                break
     pv_s, op_s, sp_s = win.pv[a:b], win.op[a:b], win.sp[a:b]
     e = sp_s - pv_s
     whole = (a, b) == (0, n)
     pi = pi_window if whole and pi_window is not None else identify_pi(op_s, pv_s, sp_s, ts)
     diag.indices["controller_fit"] = pi.fit
     diag.indices["controller_ti_s"] = pi.ti_s if pi.fit >= p.tuning.pi_min_fit else None
-    osc = detect_oscillation(e, ts, p.oscillation)
     if not osc.oscillating:
         # A controller that rejects an oscillating load well, or PV noise larger than a small
         # limit cycle, leaves the oscillation visible in OP only.

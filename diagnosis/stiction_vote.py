@@ -12,7 +12,7 @@ nonlinearity; otherwise undecided.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 from plantcheck.diagnosis.test_result import StictionTestResult
@@ -22,6 +22,9 @@ INTEGRATING_TYPES = frozenset({"level"})
 
 SHAPE_TESTS = frozenset({"relay", "curve_fit", "area_ratio", "histogram"})
 """Tests that read the waveform itself; they break ties in the vote."""
+CONFIRMING_TESTS = frozenset({"relay", "area_ratio", "histogram", "stick_slip"})
+"""Tests whose ``stiction`` vote confirms a nonlinearity test's (the curve fit passes a
+lightly damped linear cycle too, so it does not confirm)."""
 
 APPLICABLE_TESTS: dict[str, tuple[str, ...]] = {
     "self_regulating": ("relay", "curve_fit", "cross_correlation", "bicoherence", "area_ratio"),
@@ -57,12 +60,24 @@ class VoteParams:
 
     min_votes: int = 2
     """Fewest concordant votes for a decision."""
+    shape_confirmed: frozenset[str] = frozenset({"bicoherence"})
+    """Tests whose ``stiction`` vote counts only when a waveform-shape test or the stick-slip
+    events agree [R]: bicoherence flags any nonlinearity, which a lightly damped cycle with
+    noise shows too; Choudhury et al. (2004) confirm it with the PV(OP) shape."""
 
 
 def vote(results: list[StictionTestResult], params: VoteParams | None = None) -> VoteResult:
     """Combine applicable test verdicts (methods.md §3.4)."""
     p = params or VoteParams()
     used = [r for r in results if r.verdict != "not_applicable"]
+    shape_says = any(r.verdict == "stiction" and r.name in CONFIRMING_TESTS for r in used)
+    if not shape_says:
+        used = [
+            replace(r, verdict="undecided")
+            if r.verdict == "stiction" and r.name in p.shape_confirmed
+            else r
+            for r in used
+        ]
     yes = sum(r.verdict == "stiction" for r in used)
     no = sum(r.verdict == "no_stiction" for r in used)
     n = len(used)

@@ -89,6 +89,9 @@ class WindowReport:
     tests that read the whole window (stick-slip events) still apply."""
     steps: tuple[int, ...] = ()
     """Samples at which the set point steps (their responses feed the tuning verdict)."""
+    segments: tuple[tuple[int, int], ...] = ()
+    """Every settled stretch long enough to analyse, longest first (``segment`` is the first):
+    a loop judged segment by segment between set-point steps."""
 
 
 def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
@@ -272,9 +275,11 @@ def check_window(
         end = _settled(e_f, k, float(sp_f[k] - sp_f[k - 1]), sigma_e, p)
         settling.append(end - k)
         usable[k:end] = False
-    segment = _longest_usable(usable, steps)
+    stretches = _usable_stretches(usable, steps)
+    segment = stretches[0]
     seg_len = segment[1] - segment[0]
     needed = max(p.min_samples, p.min_segment_samples)
+    segments = tuple(s for s in stretches if s[1] - s[0] >= needed)
     if steps.size == 0 and (clamp.fraction == 0 or seg_len < needed):
         return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
     if seg_len < needed:
@@ -299,8 +304,9 @@ def check_window(
         )
     indices["sp_steps"] = float(steps.size)
     return WindowReport(
-        None, notes, pv_f, op_f, sp_f, segment, indices, quantised, False, tuple(steps.tolist())
-    )
+        None, notes, pv_f, op_f, sp_f, segment, indices, quantised, False, tuple(steps.tolist()),
+        segments,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -367,12 +373,12 @@ def _settled(e: FloatArray, k: int, step: float, sigma_e: float, p: WindowParams
     return k + (int(inside[0]) if inside.size else int(tail.size))
 
 
-def _longest_usable(usable: BoolArray, steps: IntArray) -> tuple[int, int]:
-    """Longest run of usable samples that holds no set-point step."""
+def _usable_stretches(usable: BoolArray, steps: IntArray) -> list[tuple[int, int]]:
+    """Runs of usable samples that hold no set-point step, longest first."""
     cut = usable.copy()
     cut[steps] = False  # a step sample ends a stretch even when its response was instant
     starts, stops = _runs(cut)
     if starts.size == 0:
-        return 0, 0
-    i = int(np.argmax(stops - starts))
-    return int(starts[i]), int(stops[i])
+        return [(0, 0)]
+    order = np.argsort(-(stops - starts), kind="stable")
+    return [(int(starts[i]), int(stops[i])) for i in order]

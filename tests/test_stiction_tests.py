@@ -107,6 +107,21 @@ def test_vote_tie_broken_by_shape_tests() -> None:
     assert vote(flipped).decision == "no_stiction"
 
 
+def test_bicoherence_needs_a_shape_test_to_call_stiction() -> None:
+    """A lightly damped linear cycle with noise can pass the curve fit and bicoherence: without
+    the relay, area-ratio, histogram or stick-slip test agreeing that is no stiction verdict."""
+    linear_looking = [
+        _r("stiction", "curve_fit"),
+        _r("stiction", "bicoherence"),
+        _r("no_stiction", "cross_correlation"),
+        _r("undecided", "relay"),
+        _r("undecided", "area_ratio"),
+    ]
+    assert vote(linear_looking).decision == "undecided"
+    confirmed = [*linear_looking[:3], _r("stiction", "area_ratio")]
+    assert vote(confirmed).decision == "stiction"
+
+
 @pytest.mark.parametrize(
     ("verdicts", "decision"),
     [

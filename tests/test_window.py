@@ -81,6 +81,10 @@ def test_frequent_sp_steps_do_not_make_a_window_unusable() -> None:
     rep = check_window(_tracking(sp), OP, sp)
     assert rep.verdict is None and not rep.sp_limited, rep.notes
     assert rep.segment[1] - rep.segment[0] >= 300
+    # every settled stretch long enough is offered, longest first, for segment-by-segment tests
+    assert rep.segments[0] == rep.segment, rep.segments
+    lengths = [b - a for a, b in rep.segments]
+    assert lengths == sorted(lengths, reverse=True) and min(lengths) >= 300
     # steps every 150 samples leave nothing long enough: said with the number
     dense = 50.0 + 3.0 * ((np.arange(N) // 150) % 2)
     rep = check_window(_tracking(dense), OP, dense)
