@@ -8,6 +8,7 @@ from typing import Annotated, Protocol
 
 from fastapi import Depends, Header, HTTPException, Query, Request
 
+from plantcheck.connectors.base import SourceHealth
 from plantcheck.service.config import ApiConfig
 from plantcheck.storage.store import LoopRow, Store
 
@@ -27,6 +28,8 @@ class ServiceBackend(Protocol):
     def held_signals(self) -> dict[str, tuple[str, ...]]: ...
 
     async def readiness(self) -> dict[str, bool]: ...
+
+    def sources(self) -> list[SourceHealth]: ...
 
     async def diagnose_now(self, loop_id: str) -> str | None: ...
 

@@ -25,13 +25,19 @@ async def healthz(request: Request) -> Health:
 @router.get(
     "/readyz",
     response_model=Readiness,
-    responses={503: {"model": Readiness, "description": "Storage or scheduler not ready"}},
+    responses={503: {"model": Readiness, "description": "Storage, scheduler or a source down"}},
 )
 async def readyz(backend: Backend) -> Response:
-    """Readiness: the store answers and the scheduler runs (503 otherwise)."""
+    """Readiness: the store answers, the scheduler runs and no source has been down past its
+    grace period (503 otherwise)."""
     parts = await backend.readiness()
+    down = [h.name for h in backend.sources() if h.state == "down"] if not parts["sources"] else []
     body = Readiness(
-        ready=all(parts.values()), storage=parts["storage"], scheduler=parts["scheduler"]
+        ready=all(parts.values()),
+        storage=parts["storage"],
+        scheduler=parts["scheduler"],
+        sources=parts["sources"],
+        sources_down=down,
     )
     return JSONResponse(body.model_dump(), status_code=200 if body.ready else 503)
 

@@ -122,6 +122,20 @@ class Readiness(BaseModel):
     ready: bool
     storage: bool
     scheduler: bool
+    sources: bool = Field(description="No source down past its grace period (down_grace_s).")
+    sources_down: list[str] = Field(default=[], description="Sources down when not ready.")
+
+
+class SourceOut(BaseModel):
+    """A data source's health (contracts §5)."""
+
+    name: str
+    protocol: Literal["modbus", "opcua"]
+    state: Literal["up", "down", "unknown"]
+    since: str | None = Field(description="When the state began (down: first failure).")
+    last_good_sample_at: str | None
+    failures: int = Field(description="Failed connections or reads since the service started.")
+    last_error: str = Field(description="The most recent failure, empty if none.")
 
 
 class Health(BaseModel):

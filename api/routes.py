@@ -28,6 +28,7 @@ from plantcheck.api.models import (
     LoopDetail,
     LoopOut,
     SampleOut,
+    SourceOut,
     State,
 )
 from plantcheck.diagnosis.result import CAUSES
@@ -214,6 +215,23 @@ async def list_actions(
             since=iso_required(a["since_us"]),
         )
         for a in rows[offset : offset + limit]
+    ]
+
+
+@router.get("/sources", response_model=list[SourceOut], responses=UNAUTHORIZED)
+async def list_sources(backend: Backend) -> list[SourceOut]:
+    """Every data source: up, down (since its first failure) or unknown (not yet connected)."""
+    return [
+        SourceOut(
+            name=h.name,
+            protocol=h.protocol,
+            state=h.state,
+            since=iso(h.since_us),
+            last_good_sample_at=iso(h.last_good_sample_us),
+            failures=h.failures,
+            last_error=h.last_error,
+        )
+        for h in backend.sources()
     ]
 
 

@@ -32,6 +32,13 @@ MAX_POINTS = 2400
 """Most points per trend sent to the browser (the window is decimated by striding)."""
 
 
+def _page(request: Request, backend: Backend, name: str, context: dict[str, Any]) -> HTMLResponse:
+    """Render a page with the banner of the sources that are down (every page shows it: a
+    table of verdicts over stale data must say so)."""
+    down = [h for h in backend.sources() if h.state == "down"]
+    return templates.TemplateResponse(request, name, {**context, "sources_down": down})
+
+
 def _series(x: np.ndarray) -> list[float | None]:
     return [None if not np.isfinite(v) else round(float(v), 4) for v in x]
 
@@ -43,8 +50,8 @@ async def health_page(request: Request, backend: Backend) -> HTMLResponse:
     counts: dict[str, int] = {}
     for lp in loops:
         counts[lp.state] = counts.get(lp.state, 0) + 1
-    return templates.TemplateResponse(
-        request, "index.html", {"loops": loops, "counts": counts, "title": "Loop health"}
+    return _page(
+        request, backend, "index.html", {"loops": loops, "counts": counts, "title": "Loop health"}
     )
 
 
@@ -70,8 +77,9 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
     for sig in ("sp", "pv", "op", "mv"):
         if sig in win.signals:
             plot[sig] = _series(win.values[sig][::stride])
-    return templates.TemplateResponse(
+    return _page(
         request,
+        backend,
         "loop.html",
         {
             "loop": status,
@@ -87,9 +95,7 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
 async def actions_page(request: Request, backend: Backend) -> HTMLResponse:
     """The suggested-action table."""
     rows = await active_actions(backend.store)
-    return templates.TemplateResponse(
-        request, "actions.html", {"actions": rows, "title": "Suggested actions"}
-    )
+    return _page(request, backend, "actions.html", {"actions": rows, "title": "Suggested actions"})
 
 
 @router.get("/stiction", response_class=HTMLResponse)
@@ -98,8 +104,9 @@ async def stiction_page(
 ) -> HTMLResponse:
     """Each valve's S over time, its limit and the projection to the limit."""
     report = await build_report(backend, times)
-    return templates.TemplateResponse(
+    return _page(
         request,
+        backend,
         "stiction.html",
         {"report": report.model_dump(), "title": "Valve stiction report"},
     )

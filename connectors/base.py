@@ -53,10 +53,38 @@ class DeviceState:
     last_error: str = ""
     failures: int = 0
     samples: int = 0
+    up_since_us: int | None = None
+    """When the device last came back (its first data after a failure or at start)."""
+
+
+@dataclass(frozen=True)
+class SourceHealth:
+    """A snapshot of one source for the API and the metrics (times in µs since the epoch).
+
+    ``state`` is ``up`` while data flows, ``down`` from the first failure until data flows
+    again, ``unknown`` before the first connection has delivered or failed.
+    """
+
+    name: str
+    protocol: str
+    state: str
+    since_us: int | None
+    last_good_sample_us: int | None
+    failures: int
+    last_error: str
+
+    def down_for_s(self, now_us: int) -> float:
+        """Seconds the source has been down (0 when it is not)."""
+        if self.state != "down" or self.since_us is None:
+            return 0.0
+        return max(0.0, (now_us - self.since_us) / 1e6)
 
 
 class DeviceConnector(ABC):
     """One device or server, polled or subscribed on its own task."""
+
+    protocol: str = ""
+    """The configuration's name of the protocol (``modbus``, ``opcua``)."""
 
     def __init__(
         self,
@@ -145,6 +173,20 @@ class DeviceConnector(ABC):
         self._after_gap.discard(r.tag_id)
         return r if r.ts_us > self._gap_us else r._replace(ts_us=self._gap_us + 1)
 
+    def health(self) -> SourceHealth:
+        """The device's state as the API shows it."""
+        st = self.state
+        since: int | None
+        if st.failing_since_us is not None:
+            state, since = "down", st.failing_since_us
+        elif st.connected:
+            state, since = "up", st.up_since_us
+        else:
+            state, since = "unknown", None
+        return SourceHealth(
+            self.name, self.protocol, state, since, st.last_success_us, st.failures, st.last_error
+        )
+
     def _failed(self, exc: BaseException) -> None:
         self.state.failures += 1
         self.state.last_error = f"{type(exc).__name__}: {exc}"
@@ -161,6 +203,7 @@ class DeviceConnector(ABC):
             log.warning("%s: back after %.1f s", self.name, down)
         self.state.failing_since_us = None
         self.state.connected = True
+        self.state.up_since_us = now_us()
 
     async def run(self) -> None:
         """Connect, collect, reconnect with backoff, until ``stop()``. The device counts as

@@ -107,6 +107,8 @@ def decode_block(
 class ModbusConnector(DeviceConnector):
     """Polls one Modbus TCP device."""
 
+    protocol = "modbus"
+
     def __init__(
         self,
         name: str,

@@ -69,6 +69,8 @@ class _Handler:
 class OpcUaConnector(DeviceConnector):
     """Subscribes to (or polls) the tags of one OPC UA server."""
 
+    protocol = "opcua"
+
     def __init__(
         self,
         name: str,

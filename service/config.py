@@ -136,6 +136,8 @@ class SourceConfig(_Strict):
     timeout_s: float = Field(2.0, gt=0, le=60)
     mode: Literal["subscribe", "poll"] = "subscribe"
     """OPC UA: data-change subscription (default) or polling."""
+    down_grace_s: float = Field(60.0, ge=0, le=86400)
+    """``/readyz`` says not ready once this source has been down this long (s)."""
 
     @model_validator(mode="after")
     def _endpoint(self) -> SourceConfig:

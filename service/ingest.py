@@ -7,7 +7,7 @@ import contextlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
+from plantcheck.connectors.base import DeviceConnector, SampleSink, SourceHealth, now_us
 from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
 from plantcheck.connectors.opcua import OpcUaConnector
 from plantcheck.service.config import Config
@@ -140,6 +140,19 @@ class Ingestion:
         ing = cls(cfg, store, writer, connectors)
         ing.tasks = [asyncio.create_task(c.run()) for c in ing.connectors]
         return ing
+
+    def source_health(self) -> list[SourceHealth]:
+        """Every configured source with loops, in configuration order."""
+        return [c.health() for c in self.connectors]
+
+    def sources_down_past_grace(self, now_us: int) -> list[str]:
+        """Sources down longer than their ``down_grace_s``."""
+        grace = {s.name: s.down_grace_s for s in self.cfg.source}
+        return [
+            h.name
+            for h in self.source_health()
+            if h.state == "down" and h.down_for_s(now_us) > grace.get(h.name, 0.0)
+        ]
 
     async def wait(self, seconds: float | None = None) -> None:
         with contextlib.suppress(TimeoutError):

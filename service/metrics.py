@@ -5,7 +5,10 @@
   ``plantcheck_samples_per_second``: received samples per second over the last minute.
 - ``plantcheck_buffer_depth``: samples waiting in memory and in the durable buffer.
 - ``plantcheck_diagnosis_duration_seconds``: read + diagnose + store time per loop window.
-- ``plantcheck_loops``: loops per state (``ok``, ``warning``, ``fault``, ``unknown``).
+- ``plantcheck_loops``: loops per state (``ok``, ``warning``, ``fault``, ``unknown``);
+  ``plantcheck_loop_state{loop, state}``: 1 for each loop's current state.
+- ``plantcheck_source_up{source, protocol}``: 1 while the source delivers data, 0 while it is
+  down or not yet connected.
 - ``plantcheck_diagnoses_total``: diagnoses by outcome (``done``, ``failed``).
 - ``plantcheck_window_cache_bytes``: memory held by the scheduler's rolling windows.
 """
@@ -13,10 +16,13 @@
 from __future__ import annotations
 
 import time
+from collections import Counter as Counter_
 from collections import deque
+from collections.abc import Sequence
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 
+from plantcheck.connectors.base import SourceHealth
 from plantcheck.diagnosis.result import STATES
 
 
@@ -57,6 +63,18 @@ class ServiceMetrics:
             "Memory held by the rolling windows kept between diagnoses.",
             registry=r,
         )
+        self.loop_state = Gauge(
+            "plantcheck_loop_state",
+            "1 for the loop's current state.",
+            ["loop", "state"],
+            registry=r,
+        )
+        self.source_up = Gauge(
+            "plantcheck_source_up",
+            "1 while the source delivers data, else 0.",
+            ["source", "protocol"],
+            registry=r,
+        )
         for s in STATES:
             self.loops.labels(s).set(0)
         self._received: deque[tuple[float, int]] = deque()
@@ -78,9 +96,18 @@ class ServiceMetrics:
         self.samples_per_second.set(rate)
         return rate
 
-    def set_loop_states(self, counts: dict[str, int]) -> None:
+    def set_loop_states(self, states: dict[str, str]) -> None:
+        """Loops per state and each loop's state, from ``{loop id: state}``."""
+        counts = Counter_(states.values())
         for s in STATES:
             self.loops.labels(s).set(counts.get(s, 0))
+        self.loop_state.clear()
+        for loop, state in states.items():
+            self.loop_state.labels(loop, state).set(1)
+
+    def set_sources(self, sources: Sequence[SourceHealth]) -> None:
+        for h in sources:
+            self.source_up.labels(h.name, h.protocol).set(1 if h.state == "up" else 0)
 
     def render(self) -> bytes:
         """The Prometheus text exposition."""

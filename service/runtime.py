@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from plantcheck.connectors.base import SourceHealth, now_us
 from plantcheck.service.config import Config
 from plantcheck.service.ingest import Ingestion
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.scheduler import DiagnosisScheduler, LoopSchedule
-from plantcheck.storage.results import count_loops_by_state
+from plantcheck.storage.results import loop_states
 from plantcheck.storage.store import Store
 from plantcheck.storage.window import HELD, SIGNALS
 
@@ -65,7 +66,7 @@ class Runtime:
                     window_cache_mb=cfg.scheduler.window_cache_mb,
                 )
                 await sched.start()
-            metrics.set_loop_states(await count_loops_by_state(ing.store))
+            metrics.set_loop_states(await loop_states(ing.store))
         except BaseException:
             await ing.stop()
             raise
@@ -92,11 +93,17 @@ class Runtime:
         await self.ingestion.stop()
 
     async def readiness(self) -> dict[str, bool]:
-        """Storage reachable and (when scheduling) the scheduler running."""
+        """Storage reachable, (when scheduling) the scheduler running, and no source down
+        past its grace period."""
         return {
             "storage": await self.store.ping(),
             "scheduler": self.scheduler is None or self.scheduler.running,
+            "sources": not self.ingestion.sources_down_past_grace(now_us()),
         }
+
+    def sources(self) -> list[SourceHealth]:
+        """Health of every data source."""
+        return self.ingestion.source_health()
 
     async def diagnose_now(self, loop_id: str) -> str | None:
         """Run a loop's scheduled job now (for ``POST /loops/{id}/diagnose``)."""
@@ -113,4 +120,5 @@ class Runtime:
             self._stored_seen = stored
         m.buffer_depth.set(w.depth)
         m.sample_rate()
+        m.set_sources(self.ingestion.source_health())
         return m.render()

@@ -39,7 +39,7 @@ from apscheduler.schedulers.asyncio import AsyncIOScheduler
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
-from plantcheck.storage.results import PendingVerdict, Verdict, count_loops_by_state
+from plantcheck.storage.results import PendingVerdict, Verdict, loop_states
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.verdict_writer import VerdictWriter
 from plantcheck.storage.window import HELD
@@ -336,7 +336,7 @@ class DiagnosisScheduler:
         while self._states_stale:
             self._states_stale = False
             try:
-                self.metrics.set_loop_states(await count_loops_by_state(self.store))
+                self.metrics.set_loop_states(await loop_states(self.store))
             except Exception as exc:  # the gauge keeps its last counts; the next change retries
                 log.warning("counting loops per state failed: %s", exc)
                 return

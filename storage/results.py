@@ -342,8 +342,8 @@ async def stiction_history(
     return out
 
 
-async def count_loops_by_state(store: Store) -> dict[str, int]:
-    """Number of loops in each state."""
-    q = select(loops.c.state, func.count()).group_by(loops.c.state)
+async def loop_states(store: Store) -> dict[str, str]:
+    """Every loop's current state, by loop id."""
+    q = select(loops.c.name, loops.c.state)
     async with store.engine.connect() as conn:
-        return {r[0]: int(r[1]) for r in (await conn.execute(q)).all()}
+        return {r[0]: r[1] for r in (await conn.execute(q)).all()}

@@ -38,9 +38,12 @@ class Service:
             self.proc.kill()
 
 
-def write_config(folder: Path, *, port: int, reads_need_key: bool = False) -> Path:
+def write_config(
+    folder: Path, *, port: int, reads_need_key: bool = False, down_grace_s: float = 86400.0
+) -> Path:
     """Configuration: SQLite in ``folder``, the default plant's loops on an OPC UA source
-    nobody serves (the records were imported), 1-hour windows diagnosed every 3 s."""
+    nobody serves (the records were imported; the source stays down, and ``/readyz`` says
+    ready until it has been down ``down_grace_s``), 1-hour windows diagnosed every 3 s."""
     sc = load_scenario(None)
     sc = sc.model_copy(
         update={
@@ -63,7 +66,9 @@ def write_config(folder: Path, *, port: int, reads_need_key: bool = False) -> Pa
             "confirm = 1",
             "quantify_every_s = 0",
             "",
-            map_toml(sc, protocol="opcua"),
+            map_toml(sc, protocol="opcua").replace(
+                'protocol = "opcua"\n', f'protocol = "opcua"\ndown_grace_s = {down_grace_s}\n', 1
+            ),
         ]
     )
     path = folder / f"plantcheck-{port}.toml"

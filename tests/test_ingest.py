@@ -128,9 +128,17 @@ def test_modbus_ingest_survives_a_simulator_restart_and_stores_nan_as_bad(
         rows = await _rows(ing, "FIC101", "pv")
         nan_rows = [r for r in rows if r[4] == BAD_DATA_ENCODING_INVALID]
         assert nan_rows and all(r[3] is None for r in nan_rows)
+        (up,) = ing.source_health()
+        assert (up.name, up.protocol, up.state) == ("sim", "modbus", "up") and up.since_us
         # kill the simulator: no crash, a gap marker; restart it: data again
         await _stop_plant(runner, task)
         await asyncio.sleep(1.5)
+        (down,) = ing.source_health()
+        assert down.state == "down" and down.failures >= 1 and down.last_error, down
+        assert down.last_good_sample_us is not None and down.since_us > down.last_good_sample_us
+        # down past its grace period (60 s by default): not ready
+        assert ing.sources_down_past_grace(down.since_us + 30_000_000) == []
+        assert ing.sources_down_past_grace(down.since_us + 61_000_000) == ["sim"]
         runner2, task2 = await _start_plant(sc)
         try:
             # the connector retries with back-off (0.5 s doubling, jittered): wait for its data
@@ -138,6 +146,7 @@ def test_modbus_ingest_survives_a_simulator_restart_and_stores_nan_as_bad(
             gaps = [r for r in rows if r[4] == BAD_NO_COMMUNICATION]
             assert len(gaps) == 1 and gaps[0][3] is None
             assert ing.connectors[0].state.connected
+            assert ing.source_health()[0].state == "up"
             # SP is held: stored when it changes and again after the gap, never repeated
             sp = await _rows_until(ing, "FIC101", "sp", lambda rows: not is_bad(rows[-1][4]))
             assert all((a[3], a[4]) != (b[3], b[4]) for a, b in itertools.pairwise(sp))

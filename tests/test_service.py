@@ -9,13 +9,16 @@ import io
 import re
 import shutil
 import subprocess
+import time
 from datetime import timedelta
 from pathlib import Path
 
 import httpx
 import pytest
 from helpers import RunCli, free_port
-from servicehelpers import API_KEY, Service, start_service, write_config
+from servicehelpers import API_KEY, CLI, Service, start_service, write_config
+
+from plantcheck.storage.database import upgrade
 
 
 def test_every_loop_gets_its_true_cause(service: Service) -> None:
@@ -90,16 +93,57 @@ def test_actions_and_stiction_report(service: Service) -> None:
 def test_probes_and_metrics(service: Service) -> None:
     assert httpx.get(f"{service.url}/healthz").json()["status"] == "ok"
     ready = httpx.get(f"{service.url}/readyz").json()
-    assert ready == {"ready": True, "storage": True, "scheduler": True}
+    # the source is down (nobody serves it) but within its grace period (a day here)
+    assert ready == {
+        "ready": True, "storage": True, "scheduler": True, "sources": True, "sources_down": []
+    }  # fmt: skip
     text = httpx.get(f"{service.url}/metrics").text
     for name in (
         "plantcheck_samples_per_second",
         "plantcheck_buffer_depth",
         "plantcheck_diagnosis_duration_seconds_count",
         'plantcheck_loops{state="fault"}',
+        'plantcheck_loop_state{loop="FIC102",state="fault"} 1.0',
+        'plantcheck_source_up{protocol="opcua",source="sim-opcua"} 0.0',
     ):
         assert name in text
     assert re.search(r'plantcheck_loops\{state="fault"\} [1-9]', text)
+
+
+def test_sources_show_the_one_nobody_serves_as_down(service: Service, tmp_path: Path) -> None:
+    (src,) = httpx.get(f"{service.url}/api/v1/sources").json()
+    assert src["name"] == "sim-opcua" and src["protocol"] == "opcua"
+    assert src["state"] == "down" and src["since"].endswith("Z"), src
+    assert src["failures"] >= 1 and src["last_error"] and src["last_good_sample_at"] is None
+    # every page says so in a banner: the verdicts are not being refreshed
+    dom = dump_dom(f"{service.url}/actions", tmp_path / "profile")
+    assert 'id="sources-down"' in dom and "sim-opcua" in dom
+
+
+def test_readyz_not_ready_once_a_source_is_down_past_its_grace(tmp_path: Path) -> None:
+    port = free_port()
+    config = write_config(tmp_path, port=port, down_grace_s=1.0)
+    upgrade(f"sqlite+aiosqlite:///{tmp_path / 'plant.db'}")
+    with (tmp_path / "run.log").open("wb") as err:
+        proc = subprocess.Popen([*CLI, "run", "--config", str(config)], stderr=err)
+    try:
+        body = None
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                r = httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=2)
+                if r.status_code == 503:
+                    body = r.json()
+                    break
+            except httpx.TransportError:
+                pass
+            time.sleep(0.3)
+        assert body is not None, (tmp_path / "run.log").read_text(errors="replace")[-2000:]
+        assert body["sources"] is False and body["sources_down"] == ["sim-opcua"], body
+        assert body["storage"] and body["scheduler"]
+    finally:
+        proc.terminate()
+        proc.wait(20)
 
 
 @pytest.mark.parametrize(
