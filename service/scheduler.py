@@ -28,6 +28,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import multiprocessing
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -39,6 +40,7 @@ from apscheduler.schedulers.asyncio import AsyncIOScheduler
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
+from plantcheck.service.worker_lifetime import die_with_parent
 from plantcheck.storage.results import PendingVerdict, Verdict, loop_states
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.verdict_writer import VerdictWriter
@@ -174,7 +176,12 @@ class DiagnosisScheduler:
         and read the loops' tag mapping."""
         self._loops = await self.store.loops()
         ctx = multiprocessing.get_context("spawn")
-        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+        self._pool = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=ctx,
+            initializer=die_with_parent,
+            initargs=(os.getpid(),),
+        )
         loop = asyncio.get_running_loop()
         await asyncio.gather(
             *(loop.run_in_executor(self._pool, _warm) for _ in range(self.workers))
