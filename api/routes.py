@@ -32,6 +32,7 @@ from plantcheck.api.models import (
     State,
 )
 from plantcheck.diagnosis.result import CAUSES
+from plantcheck.storage.names import NAME_PATTERN
 from plantcheck.storage.results import (
     active_actions,
     diagnosis_history,
@@ -40,7 +41,9 @@ from plantcheck.storage.results import (
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
-LoopId = Annotated[str, Path(description="Loop id as configured, e.g. FIC101.", max_length=64)]
+LoopId = Annotated[
+    str, Path(description="Loop id as configured, e.g. FIC101.", pattern=NAME_PATTERN)
+]
 Offset = Annotated[int, Query(ge=0, le=10_000_000, description="Items to skip.")]
 Responses = dict[int | str, dict[str, Any]]
 NOT_FOUND: Responses = {404: {"description": "Unknown loop"}}

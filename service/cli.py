@@ -17,7 +17,7 @@ import numpy as np
 import typer
 
 from plantcheck import __version__
-from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_common import LoopType, fail
 from plantcheck.service.cli_run import demo_cmd, run_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
@@ -39,17 +39,6 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
 )
-
-
-class LoopType(StrEnum):
-    """Loop types of contracts §2."""
-
-    flow = "flow"
-    pressure = "pressure"
-    level = "level"
-    temperature = "temperature"
-    composition = "composition"
-    other = "other"
 
 
 class LogLevel(StrEnum):
@@ -95,9 +84,16 @@ def _root(
     ctx.obj = LogOptions(log_level.value if log_level else None, log_format.value)
 
 
-def _load(file: Path, sample_time: float | None, need: tuple[str, ...]) -> LoopRecordFile:
+ROWS_PER_SAMPLE = 2
+"""Rows read per sample diagnosed (``--max-samples``): room for duplicate or irregular rows."""
+
+
+def _load(
+    file: Path, sample_time: float | None, need: tuple[str, ...], max_samples: int
+) -> LoopRecordFile:
+    """The record's last rows, memory bounded by ``max_samples`` whatever the file's size."""
     try:
-        rec = read_record(file, sample_time)
+        rec = read_record(file, sample_time, max_rows=ROWS_PER_SAMPLE * max_samples)
         require(rec, file, need)
     except RecordError as exc:
         raise fail(str(exc)) from None
@@ -180,7 +176,7 @@ def diagnose_cmd(
     """Diagnose one recorded loop: what is wrong and what to do."""
     from plantcheck.diagnosis import diagnose, diagnose_advanced
 
-    rec = _load(file, sample_time, ("pv", "op"))
+    rec = _load(file, sample_time, ("pv", "op"), max_samples)
     sl, extra = _tail(rec, max_samples)
     pv = rec.signals["pv"][sl]
     op = rec.signals["op"][sl]
@@ -223,7 +219,7 @@ def oscillation_cmd(
     name = column.strip().lower()
     if name not in ("sp", "pv", "op", "mv"):
         raise fail(f"--column must be one of sp, pv, op, mv, not {column!r}")
-    rec = _load(file, sample_time, (name,))
+    rec = _load(file, sample_time, (name,), max_samples)
     sl, _ = _tail(rec, max_samples)
     x = rec.signals[name][sl]
     ok = np.isfinite(x)

@@ -10,12 +10,13 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from plantcheck.service.cli_common import fail, parse_duration
+from plantcheck.service.cli_common import LoopType, fail, parse_duration
 from plantcheck.service.config import Config, load_config
 from plantcheck.service.logs import configure_for_command
 from plantcheck.service.records import RecordError, read_record
 from plantcheck.service.toml_config import ConfigError
 from plantcheck.storage.errors import StorageError
+from plantcheck.storage.names import check_loop_id
 
 db_app = typer.Typer(help="Database schema (Alembic migrations).", no_args_is_help=True)
 
@@ -50,10 +51,16 @@ def import_cmd(
     file: Annotated[Path, typer.Argument(help="Loop record (CSV, contracts §1).")],
     loop: Annotated[str, typer.Option("--loop", help="Loop id to store the samples under.")],
     config: ConfigOpt = None,
-    loop_type: Annotated[str, typer.Option(help="Loop type when the loop is new.")] = "other",
+    loop_type: Annotated[
+        LoopType, typer.Option("--loop-type", help="Loop type when the loop is new.")
+    ] = LoopType.other,
     sample_time: Annotated[float | None, typer.Option(help="Sample time (s).")] = None,
 ) -> None:
     """Backfill a recorded file into the store (idempotent: a second import adds nothing)."""
+    try:
+        check_loop_id(loop)
+    except ValueError as exc:
+        raise fail(f"--loop: {exc}") from None
     cfg = _config(config)
     try:
         rec = read_record(file, sample_time)
@@ -72,7 +79,7 @@ def import_cmd(
             sigs = [s for s in ("sp", "pv", "op", "mv") if rec.get(s) is not None]
             if rec.auto is not None:
                 sigs.append("mode")
-            row = await store.ensure_loop(loop, loop_type, "import", sigs)
+            row = await store.ensure_loop(loop, loop_type.value, "import", sigs)
             t_us = np.round((rec.start_epoch_s + rec.t) * 1e6).astype(np.int64)  # type: ignore[operator]
             now = time.time_ns() // 1000
             n = 0

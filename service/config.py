@@ -25,6 +25,7 @@ from urllib.parse import urlsplit
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from plantcheck.service.toml_config import ConfigError, dotted, load_toml, locate
+from plantcheck.storage.names import NAME_PATTERN
 
 DEFAULT_CONFIG = Path("plantcheck.toml")
 SIGNAL_KEYS = ("sp", "pv", "op", "mv", "mode")
@@ -122,7 +123,7 @@ class SchedulerConfig(_Strict):
 class SourceConfig(_Strict):
     """A Modbus TCP device or an OPC UA server."""
 
-    name: str = Field(pattern=r"^[A-Za-z0-9_.\-]{1,64}$")
+    name: str = Field(pattern=NAME_PATTERN)
     protocol: Literal["modbus", "opcua"]
     host: str = "127.0.0.1"
     port: int = Field(502, ge=1, le=65535)
@@ -164,7 +165,7 @@ class ScaleConfig(_Strict):
 class LoopConfig(_Strict):
     """A control loop and where its signals come from."""
 
-    id: str = Field(pattern=r"^[A-Za-z0-9_.\-]{1,64}$")
+    id: str = Field(pattern=NAME_PATTERN)
     type: Literal["flow", "pressure", "level", "temperature", "composition", "other"] = "other"
     source: str
     sp: str = ""

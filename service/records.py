@@ -14,9 +14,12 @@ problem and the fix.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
+from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -109,47 +112,104 @@ def _parse_timestamps(cells: list[str]) -> FloatArray:
     return out
 
 
-def _read_columns(path: Path) -> tuple[list[str], list[list[str]]]:
+MAX_LINE_CHARS = 65_536
+"""Longest line accepted: a record row holds a few numbers; a longer line is not a record."""
+SNIFF_BYTES = 65_536
+"""Bytes read first to tell text from binary data."""
+MAX_GRID_PER_ROW = 20
+"""A time axis that needs more grid points than this per row has a time far out of line."""
+
+
+def _open_text(path: Path) -> io.TextIOWrapper:
+    """The file as text with universal line ends (``\n``, ``\r\n`` or a lone ``\r``):
+    UTF-8 (with or without a byte-order mark), else Latin-1; binary data is refused."""
     try:
-        raw = path.read_bytes()
+        f = path.open("rb")
     except FileNotFoundError:
         raise RecordError(f"{path}: file not found; check the path") from None
     except IsADirectoryError:
         raise RecordError(f"{path}: is a directory; give a CSV record file") from None
     except OSError as exc:
         raise RecordError(f"{path}: cannot be read ({exc.strerror}); check permissions") from None
+    head = f.read(SNIFF_BYTES)
+    nul = head.find(b"\x00")
+    if nul >= 0:
+        f.close()
+        raise RecordError(
+            f"{path}: binary data (a NUL byte at byte {nul}), not CSV text; export the record "
+            "as a CSV file with a header row"
+        )
+    f.seek(0)
     try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    if not text.strip():
-        raise RecordError(f"{path}: file is empty; a header row and data rows are needed")
-    first_nl = text.find("\n")
-    header_line = text if first_nl < 0 else text[:first_nl]
-    sep = _detect_separator(header_line)
-    reader = csv.reader(io.StringIO(text), delimiter=sep)
-    header = [h.strip().lower() for h in next(reader)]
-    columns: list[list[str]] = [[] for _ in header]
-    ncol = len(header)
-    for row in reader:
-        if not row or (len(row) == 1 and not row[0].strip()):
-            continue
-        if len(row) < ncol:
-            row = row + [""] * (ncol - len(row))
-        for j in range(ncol):
-            columns[j].append(row[j])
-    return header, columns
+        head.decode("utf-8-sig")
+        encoding = "utf-8-sig"
+    except UnicodeDecodeError as exc:
+        # a multi-byte character cut at the end of the sniffed bytes is still UTF-8
+        encoding = "utf-8-sig" if exc.start >= len(head) - 3 else "latin-1"
+    return io.TextIOWrapper(f, encoding=encoding, errors="replace", newline=None)
 
 
-def read_record(path: str | Path, sample_time_s: float | None = None) -> LoopRecordFile:
+def _bounded_lines(f: io.TextIOWrapper, path: Path) -> Iterator[str]:
+    """The file's lines, refusing one longer than ``MAX_LINE_CHARS`` before it is in memory."""
+    k = 0
+    while True:
+        line = f.readline(MAX_LINE_CHARS + 1)
+        if not line:
+            return
+        k += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise RecordError(
+                f"{path}: line {k} is longer than {MAX_LINE_CHARS} characters; a record has "
+                "one sample per line (check the file is the CSV export)"
+            )
+        yield line
+
+
+def _read_columns(
+    path: Path, max_rows: int | None = None
+) -> tuple[list[str], list[list[str]], int]:
+    """Header, the last ``max_rows`` data rows by column (all when None) and the row count.
+
+    The file is streamed: memory holds at most ``max_rows`` rows whatever the file's size.
+    """
+    with _open_text(path) as f:
+        lines = _bounded_lines(f, path)
+        header_line = ""
+        for line in lines:
+            if line.strip():
+                header_line = line
+                break
+        if not header_line:
+            raise RecordError(f"{path}: file is empty; a header row and data rows are needed")
+        sep = _detect_separator(header_line)
+        header = [h.strip().lower() for h in next(csv.reader([header_line], delimiter=sep))]
+        ncol = len(header)
+        rows: deque[list[str]] = deque(maxlen=max_rows)
+        total = 0
+        for row in csv.reader(lines, delimiter=sep):
+            if not row or (len(row) == 1 and not row[0].strip()):
+                continue
+            total += 1
+            rows.append(row[:ncol] if len(row) >= ncol else row + [""] * (ncol - len(row)))
+    columns = [list(c) for c in zip(*rows, strict=True)] if rows else [[] for _ in header]
+    return header, columns, total
+
+
+def read_record(
+    path: str | Path, sample_time_s: float | None = None, max_rows: int | None = None
+) -> LoopRecordFile:
     """Read and regularise a loop record file (contracts.md §1).
 
-    Raises ``RecordError`` when the file is missing, empty, has no header or no data rows.
+    ``max_rows`` keeps only the file's last rows (memory bounded whatever its size; noted).
+    Raises ``RecordError`` when the file is missing, empty, binary, has a line longer than
+    ``MAX_LINE_CHARS``, no header, no data rows, or a time far out of line.
     Signal columns are optional here; callers check what they need (``require``).
     """
     path = Path(path)
-    header, columns = _read_columns(path)
+    header, columns, total = _read_columns(path, max_rows)
     notes: list[str] = []
+    if max_rows is not None and total > max_rows:
+        notes.append(f"record has {total} rows: read the last {max_rows}")
     if not any(h in ("pv", "op", "sp", "mv", "t", "timestamp", "mode") for h in header):
         raise RecordError(
             f"{path}: no known column in the header {header[:6]}; expected a header row with "
@@ -191,7 +251,7 @@ def read_record(path: str | Path, sample_time_s: float | None = None) -> LoopRec
         t = t[keep]
         signals = {k: v[keep] for k, v in signals.items()}
         mode = mode[keep] if mode is not None else None
-    rec = _regularise(t, signals, mode, sample_time_s, notes)
+    rec = _regularise(t, signals, mode, sample_time_s, notes, path, time_name == "timestamp")
     if time_name == "timestamp":
         rec = replace(rec, start_epoch_s=float(t.min()))
     return rec
@@ -203,6 +263,8 @@ def _regularise(
     mode: NDArray[np.bool_] | None,
     sample_time_s: float | None,
     notes: list[str],
+    path: Path,
+    epoch: bool,
 ) -> LoopRecordFile:
     order = np.argsort(t, kind="stable")
     if np.any(order != np.arange(t.size)):
@@ -234,6 +296,15 @@ def _regularise(
     regular = np.allclose(dt, ts, rtol=0.01, atol=1e-9)
     if regular:
         return LoopRecordFile(t - t[0], signals, ts, mode, notes)
+    points = (t[-1] - t[0]) / ts + 1
+    if points > MAX_GRID_PER_ROW * t.size:
+        # one wrong time (year 9999, t = 1e308) would make the uniform grid exhaust memory
+        i = int(np.argmax(dt))
+        raise RecordError(
+            f"{path}: the time jumps from {_time_text(t[i], epoch)} to "
+            f"{_time_text(t[i + 1], epoch)} between two rows: {points:.3g} samples at "
+            f"{ts:g} s for {t.size} rows; fix or delete the rows with a wrong time"
+        )
     grid = t[0] + np.arange(math.floor((t[-1] - t[0]) / ts + 1e-9) + 1) * ts
     notes.append(f"irregular sample spacing: resampled to {ts:g} s ({grid.size} samples)")
     out: dict[str, FloatArray] = {}
@@ -255,6 +326,14 @@ def _regularise(
     if mode is not None:
         mode_g = mode[np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)]
     return LoopRecordFile(grid - grid[0], out, ts, mode_g, notes)
+
+
+def _time_text(t: float, epoch: bool) -> str:
+    """A time as the file wrote it: ISO 8601 for a timestamp column, seconds for ``t``."""
+    if epoch:
+        with contextlib.suppress(ValueError, OverflowError, OSError):
+            return datetime.fromtimestamp(t, UTC).isoformat().replace("+00:00", "Z")
+    return f"{t:g} s"
 
 
 def require(record: LoopRecordFile, path: str | Path, names: tuple[str, ...]) -> None:

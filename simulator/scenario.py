@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from plantcheck.service.toml_config import load_toml, parse_toml
 from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.loop import LoopConfig, PIController, Process
+from plantcheck.storage.names import NAME_PATTERN
 
 SIGNALS = ("SP", "PV", "OP", "MV", "Mode")
 """Signals each loop serves, in register order."""
@@ -146,7 +147,7 @@ class DisturbanceSpec(_Strict):
 class LoopSpec(_Strict):
     """One simulated loop."""
 
-    id: str = Field(pattern=r"^[A-Za-z0-9_.\-]{1,64}$")
+    id: str = Field(pattern=NAME_PATTERN)
     type: Literal["flow", "pressure", "level", "temperature", "composition", "other"] = "other"
     description: str = ""
     unit: str = "%"

@@ -83,4 +83,16 @@ def test_ten_million_rows(run_cli: RunCli, tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     assert out["samples"] == 200_000
-    assert any("10000000 samples" in note for note in out["notes"])
+    assert any("record has 10000000 rows: read the last 400000" in n for n in out["notes"])
+
+
+def test_a_long_record_is_read_with_memory_bounded_by_max_rows(tmp_path: Path) -> None:
+    """Only the last ``max_rows`` rows are kept while the file streams (issue 27)."""
+    from plantcheck.service.records import read_record
+
+    f = tmp_path / "long.csv"
+    f.write_text("t,pv,op\n" + "".join(f"{k},{50 + k % 7},{40 + k % 5}\n" for k in range(5000)))
+    rec = read_record(f, max_rows=1000)
+    assert rec.t.size == 1000 and rec.get("pv") is not None
+    assert "record has 5000 rows: read the last 1000" in rec.notes
+    assert read_record(f).t.size == 5000

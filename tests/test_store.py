@@ -102,6 +102,12 @@ def test_db_upgrade_and_import_cli(tmp_path: Path, run_cli) -> None:  # type: ig
     )
     r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
     assert r.returncode == 2 and "plantcheck db upgrade" in r.stderr
+    # the ids the configuration would refuse are refused here too, before anything is read
+    for bad_id in ("L 1", "FIC/101", "x" * 65, ""):
+        r = run_cli("import", str(rec), "--loop", bad_id, "--config", str(cfg))
+        assert r.returncode == 2 and "--loop: loop id" in r.stderr, (bad_id, r.stderr)
+    r = run_cli("import", str(rec), "--loop", "L1", "--loop-type", "valve", "--config", str(cfg))
+    assert r.returncode == 2 and "--loop-type" in r.stderr
     assert run_cli("db", "upgrade", "--config", str(cfg)).returncode == 0
     r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
     assert r.returncode == 0, r.stderr
