@@ -36,10 +36,12 @@ def _check_port(host: str, port: int, what: str) -> None:
 
 
 async def _check_store(cfg: Config, hint: str) -> None:
+    from plantcheck.storage.buffer import DurableBuffer
     from plantcheck.storage.database import StorageError
     from plantcheck.storage.store import Store
 
     try:
+        DurableBuffer(Path(cfg.storage.buffer_path), cfg.storage.buffer_max_samples).close()
         store = await Store.open(cfg.storage.url, config_hint=hint)
     except StorageError as exc:
         raise fail(str(exc)) from None

@@ -23,6 +23,7 @@ QUIET_LIBRARIES = (
     "apscheduler",
     "uvicorn.access",
     "sqlalchemy",
+    "alembic",
     "aiosqlite",
     "asyncpg",
     "httpx",

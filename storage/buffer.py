@@ -11,6 +11,7 @@ import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
 
+from plantcheck.storage.errors import StorageError
 from plantcheck.storage.samples import Sample
 
 
@@ -21,14 +22,21 @@ class DurableBuffer:
         self.path = path
         self.max_samples = max_samples
         self.dropped = 0
-        self._db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=NORMAL")
-        self._db.execute(
-            "CREATE TABLE IF NOT EXISTS pending (seq INTEGER PRIMARY KEY AUTOINCREMENT, "
-            "tag_id INTEGER, ts_us INTEGER, recv_us INTEGER, value REAL, status INTEGER)"
-        )
-        self._size = int(self._db.execute("SELECT count(*) FROM pending").fetchone()[0])
+        try:
+            self._db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=NORMAL")
+            self._db.execute(
+                "CREATE TABLE IF NOT EXISTS pending (seq INTEGER PRIMARY KEY AUTOINCREMENT, "
+                "tag_id INTEGER, ts_us INTEGER, recv_us INTEGER, value REAL, status INTEGER)"
+            )
+            self._size = int(self._db.execute("SELECT count(*) FROM pending").fetchone()[0])
+        except sqlite3.Error as exc:
+            # without its buffer the service would lose every sample of a store outage
+            raise StorageError(
+                f"storage.buffer_path: cannot open the durable buffer {path} ({exc}); point it "
+                "at a file in a folder the service can write"
+            ) from None
 
     def __len__(self) -> int:
         return self._size

@@ -74,6 +74,14 @@ async def current_revision(engine: AsyncEngine) -> str | None:
         if "no such table" in msg or ("does not exist" in msg and "alembic_version" in msg):
             return None
         raise StorageError(f"cannot reach the database: {exc.orig}") from None
+    except OSError as exc:
+        # asyncpg resolves and connects itself: an unknown host or a refused port is an OSError
+        where = engine.url.render_as_string(hide_password=True)
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise StorageError(
+            f"cannot reach the database {where}: {reason}; check storage.url (host and port) "
+            "and that the server runs"
+        ) from None
     return None if row is None else str(row[0])
 
 

@@ -223,6 +223,35 @@ def test_unmigrated_database_refused_with_the_fix(tmp_path: Path, run_cli: RunCl
     assert r.returncode == 2 and "plantcheck db upgrade" in r.stderr
 
 
+@pytest.mark.parametrize("command", ["run", "ingest"])
+def test_storage_that_cannot_be_opened_is_refused_with_the_key(
+    tmp_path: Path, run_cli: RunCli, command: str
+) -> None:
+    """An unwritable buffer path or a database nobody serves: exit 2 and the key to fix, never
+    a traceback (issue 27)."""
+    db = f"sqlite+aiosqlite:///{tmp_path / 'x.db'}"
+    assert run_cli("db", "upgrade", "--config", str(_storage_config(tmp_path, db))).returncode == 0
+    cfg = _storage_config(tmp_path, db, buffer="/proc/no-such-folder/buffer.db")
+    extra = ["--duration", "1s"] if command == "ingest" else []
+    r = run_cli(command, "--config", str(cfg), *extra)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "storage.buffer_path: cannot open the durable buffer" in r.stderr
+    nobody = f"postgresql+asyncpg://u:p@127.0.0.1:{free_port()}/plant"
+    r = run_cli(command, "--config", str(_storage_config(tmp_path, nobody)), *extra)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "cannot reach the database" in r.stderr and "check storage.url" in r.stderr
+
+
+def _storage_config(folder: Path, url: str, buffer: str | None = None) -> Path:
+    cfg = folder / "storage.toml"
+    cfg.write_text(
+        f'[storage]\nurl = "{url}"\nbuffer_path = "{buffer or folder / "buf.db"}"\n'
+        f"[api]\nport = {free_port()}\n",
+        encoding="utf-8",
+    )
+    return cfg
+
+
 # -- the web page, in a real browser --------------------------------------------------------
 
 
