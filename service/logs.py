@@ -58,11 +58,31 @@ class JsonFormatter(logging.Formatter):
         return json.dumps(out, ensure_ascii=False)
 
 
+class OneLineLibraryErrors(logging.Filter):
+    """A library's error on one line, without its traceback (unless ``debug``).
+
+    asyncua logs "Publish iteration crashed" with a full traceback at every lost connection;
+    the connector already logs the failure once and its recovery once, so the library's
+    traceback only fills the log. Our own loggers keep theirs: there it is a bug.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.exc_info and not record.name.startswith("plantcheck"):
+            exc = record.exc_info[1]
+            record.msg = f"{record.getMessage()} ({type(exc).__name__}: {exc})"
+            record.args = None
+            record.exc_info = None
+            record.exc_text = None
+        return True
+
+
 def configure_logging(level: str, fmt: Literal["plain", "json"] = "plain") -> None:
     """Configure the root logger once: ``level`` one of ``LEVELS``; libraries at WARNING
     unless ``debug``."""
     handler = logging.StreamHandler()
     handler.setFormatter(JsonFormatter() if fmt == "json" else logging.Formatter(PLAIN))
+    if level != "debug":
+        handler.addFilter(OneLineLibraryErrors())
     root = logging.getLogger()
     for old in list(root.handlers):
         root.removeHandler(old)

@@ -45,3 +45,18 @@ def test_cli_takes_the_options(run_cli: RunCli) -> None:
     assert r.returncode == 0 and "plantcheck" in r.stdout
     bad = run_cli("--log-level", "loud", "oscillation", "x.csv", "--column", "op")
     assert bad.returncode == 2 and "--log-level" in bad.stderr
+
+
+def test_a_library_error_is_one_line_without_its_traceback(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """asyncua's "Publish iteration crashed" traceback at every lost connection (issue 27)."""
+    configure_logging("info")
+    try:
+        raise ConnectionError("Connection is closed")
+    except ConnectionError:
+        logging.getLogger("asyncua.client.ua_session").exception("Publish iteration crashed")
+        logging.getLogger("plantcheck.scheduler").exception("a bug of ours")
+    err = capsys.readouterr().err
+    assert "Publish iteration crashed (ConnectionError: Connection is closed)" in err
+    assert err.count("Traceback") == 1 and err.index("Traceback") > err.index("a bug of ours")
