@@ -13,7 +13,6 @@ from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-import numpy as np
 import typer
 
 from plantcheck import __version__
@@ -22,10 +21,10 @@ from plantcheck.service.cli_run import demo_cmd, run_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
 from plantcheck.service.logs import LogOptions
-from plantcheck.service.records import LoopRecordFile, RecordError, read_record, require
 
 if TYPE_CHECKING:
     from plantcheck.diagnosis import Diagnosis
+    from plantcheck.service.records import LoopRecordFile
 
 # The diagnosis library (numpy, scipy.signal: about 0.8 s) is imported by the commands that
 # diagnose, so that `plantcheck --version`, `--help` and the service commands start at once.
@@ -92,6 +91,8 @@ def _load(
     file: Path, sample_time: float | None, need: tuple[str, ...], max_samples: int
 ) -> LoopRecordFile:
     """The record's last rows, memory bounded by ``max_samples`` whatever the file's size."""
+    from plantcheck.service.records import RecordError, read_record, require
+
     try:
         rec = read_record(file, sample_time, max_rows=ROWS_PER_SAMPLE * max_samples)
         require(rec, file, need)
@@ -212,6 +213,8 @@ def oscillation_cmd(
     """Test one signal for a sustained oscillation (Hägglund + Thornhill, then the band-passed
     spectral peaks for irregular and multiple oscillations, then the few-cycle test for slow
     records) and list every oscillation found."""
+    import numpy as np
+
     from plantcheck.diagnosis import detect_oscillation
     from plantcheck.diagnosis.oscillation import SPECTRAL, oscillations_json
     from plantcheck.diagnosis.result import json_safe

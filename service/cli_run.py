@@ -12,14 +12,16 @@ import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_store import ConfigOpt, _config
-from plantcheck.service.config import Config
 from plantcheck.service.logs import configure_for_command
+
+if TYPE_CHECKING:
+    from plantcheck.service.config import Config
 
 # uvicorn and the store (SQLAlchemy, alembic: about 0.4 s) are imported when a command runs,
 # so that the command line itself starts at once (issue 29)

@@ -5,14 +5,15 @@ from __future__ import annotations
 import asyncio
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from plantcheck.service.cli_common import fail, parse_duration, parse_host_port
 from plantcheck.service.logs import configure_for_command
-from plantcheck.service.toml_config import ConfigError
-from plantcheck.simulator.scenario import Scenario, load_scenario
+
+if TYPE_CHECKING:
+    from plantcheck.simulator.scenario import Scenario
 
 
 def _apply_overrides(
@@ -89,7 +90,9 @@ def simulate_cmd(
     With --to-csv, simulate --duration at full speed and write one CSV record per loop plus a
     JSON file with its true cause and S, J instead of serving.
     """
+    from plantcheck.service.toml_config import ConfigError
     from plantcheck.simulator.export import map_csv, map_toml, write_records
+    from plantcheck.simulator.scenario import load_scenario
 
     try:
         scenario = load_scenario(config)

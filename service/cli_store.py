@@ -5,18 +5,17 @@ from __future__ import annotations
 import asyncio
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 
 from plantcheck.service.cli_common import LoopType, fail, parse_duration
-from plantcheck.service.config import Config, load_config
 from plantcheck.service.logs import configure_for_command
-from plantcheck.service.records import RecordError, read_record
-from plantcheck.service.toml_config import ConfigError
 from plantcheck.storage.errors import StorageError
 from plantcheck.storage.names import check_loop_id
+
+if TYPE_CHECKING:
+    from plantcheck.service.config import Config
 
 db_app = typer.Typer(help="Database schema (Alembic migrations).", no_args_is_help=True)
 
@@ -26,6 +25,9 @@ ConfigOpt = Annotated[
 
 
 def _config(path: Path | None) -> Config:
+    from plantcheck.service.config import Config, load_config
+    from plantcheck.service.toml_config import ConfigError
+
     if path is None and not Path("plantcheck.toml").exists():
         return Config()  # embedded default: SQLite file plantcheck.db in this folder
     try:
@@ -62,6 +64,10 @@ def import_cmd(
     except ValueError as exc:
         raise fail(f"--loop: {exc}") from None
     cfg = _config(config)
+    import numpy as np
+
+    from plantcheck.service.records import RecordError, read_record
+
     try:
         rec = read_record(file, sample_time)
     except RecordError as exc:
