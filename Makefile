@@ -21,6 +21,7 @@ venv: $(STAMP)
 lint: venv
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports
 
 # mypy resolves `plantcheck` through a throw-away link to this folder made outside the tree
 # (the package lives at the repository root through setuptools' package-dir mapping).

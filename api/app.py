@@ -18,8 +18,8 @@ from fastapi.staticfiles import StaticFiles
 
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
+from plantcheck.api.deps import AccessSettings
 from plantcheck.api.loop_table import LoopTable
-from plantcheck.service.config import ApiConfig
 from plantcheck.storage.errors import store_outage_errors
 
 Lifespan = Callable[[FastAPI], AbstractAsyncContextManager[None]]
@@ -31,7 +31,7 @@ configuration sets `api.require_key_for_reads`, every request needs the `X-API-K
 requests that change anything always do."""
 
 
-def create_app(api_config: ApiConfig, lifespan: Lifespan) -> FastAPI:
+def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
     """The app with every route; ``lifespan`` starts and stops what serves it."""
 
     app = FastAPI(

@@ -9,10 +9,18 @@ from typing import Annotated, Protocol
 from fastapi import Depends, Header, HTTPException, Query, Request
 
 from plantcheck.connectors.base import SourceHealth
-from plantcheck.service.config import ApiConfig
 from plantcheck.storage.store import LoopRow, Store
 
 API_KEY_HEADER = "X-API-Key"
+
+
+class AccessSettings(Protocol):
+    """The API-key settings the routes check (the service's ``[api]`` table)."""
+
+    @property
+    def api_key(self) -> str: ...
+    @property
+    def require_key_for_reads(self) -> bool: ...
 
 
 class ServiceBackend(Protocol):
@@ -44,8 +52,8 @@ def get_backend(request: Request) -> ServiceBackend:
     return backend
 
 
-def get_api_config(request: Request) -> ApiConfig:
-    cfg: ApiConfig = request.app.state.api_config
+def get_api_config(request: Request) -> AccessSettings:
+    cfg: AccessSettings = request.app.state.api_config
     return cfg
 
 
@@ -60,7 +68,7 @@ def _key_matches(given: str | None, expected: str) -> bool:
 
 
 def require_read_key(
-    cfg: Annotated[ApiConfig, Depends(get_api_config)],
+    cfg: Annotated[AccessSettings, Depends(get_api_config)],
     x_api_key: Annotated[str | None, Header(include_in_schema=False)] = None,
 ) -> None:
     """Reads need the key only when ``api.require_key_for_reads`` is set."""
@@ -73,7 +81,7 @@ def require_read_key(
 
 
 def require_write_key(
-    cfg: Annotated[ApiConfig, Depends(get_api_config)],
+    cfg: Annotated[AccessSettings, Depends(get_api_config)],
     x_api_key: Annotated[str | None, Header(include_in_schema=False)] = None,
 ) -> None:
     """Every request that changes anything needs the key; without a configured key such

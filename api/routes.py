@@ -31,8 +31,8 @@ from plantcheck.api.models import (
     SourceOut,
     State,
 )
+from plantcheck.core.names import NAME_PATTERN
 from plantcheck.diagnosis.result import CAUSES
-from plantcheck.storage.names import NAME_PATTERN
 from plantcheck.storage.results import (
     active_actions,
     diagnosis_history,

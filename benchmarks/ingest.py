@@ -31,11 +31,11 @@ from pymodbus.client import AsyncModbusTcpClient
 from simhelpers import scaled_scenario
 
 from plantcheck.connectors.modbus import Block, ModbusTag, plan_blocks
+from plantcheck.core.samples import Sample
 from plantcheck.service.config import Config, LoopConfig, SourceConfig, StorageConfig
 from plantcheck.service.ingest import Ingestion
 from plantcheck.simulator.runner import PlantRunner
 from plantcheck.storage.database import upgrade
-from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import Store
 
 

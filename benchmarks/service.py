@@ -45,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from helpers import free_port, verdict_of
 from simhelpers import scaled_scenario
 
+from plantcheck.core.samples import Sample
 from plantcheck.service.config import Config
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.runtime import schedules_of
@@ -52,7 +53,6 @@ from plantcheck.service.scheduler import DiagnosisScheduler
 from plantcheck.simulator.plant import Plant
 from plantcheck.storage.database import upgrade
 from plantcheck.storage.results import record_verdict
-from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import Store
 
 SIGNALS = ("sp", "pv", "op", "mv", "mode")

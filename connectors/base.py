@@ -27,8 +27,8 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 
 SampleSink = Callable[[Sequence[Sample]], None]
 

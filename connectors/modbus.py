@@ -26,8 +26,8 @@ from pymodbus.exceptions import ModbusException
 
 from plantcheck.connectors.base import DeviceConnector, SampleSink
 from plantcheck.connectors.modbus_codec import WIDTH, DataType, Order, decode
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import (
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import (
     BAD_DATA_ENCODING_INVALID,
     BAD_DEVICE_FAILURE,
     GOOD,

@@ -28,8 +28,8 @@ from typing import Any
 from asyncua import Client, ua
 
 from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import BAD_DATA_ENCODING_INVALID, is_bad
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import BAD_DATA_ENCODING_INVALID, is_bad
 
 log = logging.getLogger("plantcheck.connectors")
 

@@ -90,7 +90,7 @@ def simulate_cmd(
     With --to-csv, simulate --duration at full speed and write one CSV record per loop plus a
     JSON file with its true cause and S, J instead of serving.
     """
-    from plantcheck.service.toml_config import ConfigError
+    from plantcheck.core.toml_config import ConfigError
     from plantcheck.simulator.export import map_csv, map_toml, write_records
     from plantcheck.simulator.scenario import load_scenario
 

@@ -9,10 +9,10 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from plantcheck.core.names import check_loop_id
 from plantcheck.service.cli_common import LoopType, fail, parse_duration
 from plantcheck.service.logs import configure_for_command
 from plantcheck.storage.errors import StorageError
-from plantcheck.storage.names import check_loop_id
 
 if TYPE_CHECKING:
     from plantcheck.service.config import Config
@@ -25,8 +25,8 @@ ConfigOpt = Annotated[
 
 
 def _config(path: Path | None) -> Config:
+    from plantcheck.core.toml_config import ConfigError
     from plantcheck.service.config import Config, load_config
-    from plantcheck.service.toml_config import ConfigError
 
     if path is None and not Path("plantcheck.toml").exists():
         return Config()  # embedded default: SQLite file plantcheck.db in this folder
@@ -75,8 +75,8 @@ def import_cmd(
     if rec.start_epoch_s is None:
         raise fail(f"{file}: needs a timestamp column (ISO 8601) to be stored at its real time")
 
-    from plantcheck.storage.samples import Sample
-    from plantcheck.storage.status_codes import BAD_DATA_ENCODING_INVALID, GOOD
+    from plantcheck.core.samples import Sample
+    from plantcheck.core.status_codes import BAD_DATA_ENCODING_INVALID, GOOD
     from plantcheck.storage.store import Store
 
     async def run() -> int:

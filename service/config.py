@@ -24,8 +24,8 @@ from urllib.parse import urlsplit
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from plantcheck.service.toml_config import ConfigError, dotted, load_toml, locate
-from plantcheck.storage.names import NAME_PATTERN
+from plantcheck.core.names import NAME_PATTERN
+from plantcheck.core.toml_config import ConfigError, dotted, load_toml, locate
 
 DEFAULT_CONFIG = Path("plantcheck.toml")
 SIGNAL_KEYS = ("sp", "pv", "op", "mv", "mode")

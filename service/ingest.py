@@ -10,9 +10,9 @@ from pathlib import Path
 from plantcheck.connectors.base import DeviceConnector, SampleSink, SourceHealth, now_us
 from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
 from plantcheck.connectors.opcua import OpcUaConnector
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.service.config import Config
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
 from plantcheck.storage.writer import SampleWriter

@@ -16,10 +16,10 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from plantcheck.service.toml_config import load_toml, parse_toml
+from plantcheck.core.names import NAME_PATTERN
+from plantcheck.core.toml_config import load_toml, parse_toml
 from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.loop import LoopConfig, PIController, Process
-from plantcheck.storage.names import NAME_PATTERN
 
 SIGNALS = ("SP", "PV", "OP", "MV", "Mode")
 """Signals each loop serves, in register order."""

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
+from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,8 @@ import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
 
+from plantcheck.core.samples import Sample
 from plantcheck.storage.errors import StorageError
-from plantcheck.storage.samples import Sample
 
 
 class DurableBuffer:

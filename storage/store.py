@@ -12,7 +12,7 @@ import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import chain
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,13 +20,53 @@ from sqlalchemy import and_, bindparam, delete, func, insert, select, text, upda
 from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
 from sqlalchemy.sql.elements import ColumnElement
 
-from plantcheck.service.config import Config
+from plantcheck.core.samples import Sample
 from plantcheck.storage.database import make_engine, require_migrated
-from plantcheck.storage.samples import Sample
 from plantcheck.storage.schema import loops, samples, sources, tags
 from plantcheck.storage.window import HELD, LoopWindow, align
 
 _COLUMNS = ("tag_id", "ts_us", "recv_us", "value", "status")
+
+
+class SourceSettings(Protocol):
+    """What the store keeps of a configured source."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def protocol(self) -> str: ...
+    @property
+    def url(self) -> str: ...
+    @property
+    def host(self) -> str: ...
+    @property
+    def port(self) -> int: ...
+    @property
+    def device_id(self) -> int: ...
+
+
+class LoopSettings(Protocol):
+    """What the store keeps of a configured loop."""
+
+    @property
+    def id(self) -> str: ...
+    @property
+    def type(self) -> str: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def description(self) -> str: ...
+    def tags(self) -> dict[str, str]: ...
+
+
+class PlantSettings(Protocol):
+    """The sources and loops of a configuration: the store takes plain settings and knows
+    nothing of the service's configuration file."""
+
+    @property
+    def source(self) -> Sequence[SourceSettings]: ...
+    @property
+    def loop(self) -> Sequence[LoopSettings]: ...
 
 
 @dataclass(frozen=True)
@@ -83,8 +123,9 @@ class Store:
             return False
 
     # -- configuration -------------------------------------------------------------------
-    async def sync_config(self, cfg: Config) -> dict[str, LoopRow]:
-        """Create or update sources, loops and their tag mapping from the configuration."""
+    async def sync_config(self, cfg: PlantSettings) -> dict[str, LoopRow]:
+        """Create or update sources, loops and their tag mapping from the configuration
+        (the service's ``Config``; any object of that shape)."""
         async with self.engine.begin() as conn:
             for s in cfg.source:
                 endpoint = s.url or f"{s.host}:{s.port}/{s.device_id}"

@@ -18,8 +18,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from plantcheck.core.samples import Sample
 from plantcheck.storage.buffer import DurableBuffer
-from plantcheck.storage.samples import Sample
 from plantcheck.storage.store import Store
 
 log = logging.getLogger("plantcheck.storage")

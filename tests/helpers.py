@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from plantcheck.core.toml_config import ConfigError
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.config import Config, LoopConfig, SourceConfig
-from plantcheck.service.toml_config import ConfigError
 from plantcheck.storage.results import Verdict
 from plantcheck.storage.store import LoopRow
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from plantcheck.core.toml_config import ConfigError
 from plantcheck.service.config import Config, load_config
-from plantcheck.service.toml_config import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
 

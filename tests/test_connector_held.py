@@ -8,8 +8,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from plantcheck.connectors.base import HELD_REFRESH_S, DeviceConnector
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION, BAD_SENSOR_FAILURE, GOOD
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import BAD_NO_COMMUNICATION, BAD_SENSOR_FAILURE, GOOD
 
 SP, PV = 1, 2
 S = 1_000_000

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.storage.accounting import account_samples
-from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from soak import FAULTS, LOOPS, drill

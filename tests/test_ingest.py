@@ -12,18 +12,18 @@ import pytest
 from pgcluster import PgCluster
 from simhelpers import scenario_on_free_ports
 
+from plantcheck.core.status_codes import (
+    BAD_DATA_ENCODING_INVALID,
+    BAD_NO_COMMUNICATION,
+    BAD_SENSOR_FAILURE,
+    is_bad,
+)
 from plantcheck.service.config import Config, LoopConfig, SourceConfig, StorageConfig
 from plantcheck.service.ingest import Ingestion
 from plantcheck.simulator.faults import send_admin
 from plantcheck.simulator.runner import PlantRunner
 from plantcheck.simulator.scenario import Scenario
 from plantcheck.storage.database import upgrade
-from plantcheck.storage.status_codes import (
-    BAD_DATA_ENCODING_INVALID,
-    BAD_NO_COMMUNICATION,
-    BAD_SENSOR_FAILURE,
-    is_bad,
-)
 
 LOOPS = ("FIC101", "FIC102", "FIC701")
 

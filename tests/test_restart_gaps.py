@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from helpers import free_port
 
-from plantcheck.storage.status_codes import BAD_NO_COMMUNICATION
+from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 
 CLI = [sys.executable, "-m", "plantcheck.service.cli"]
 Row = tuple[int, float | None, int]

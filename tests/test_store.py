@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from helpers import T0, one_loop_config
 
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import BAD_SENSOR_FAILURE, GOOD
 from plantcheck.storage.database import StorageError
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import BAD_SENSOR_FAILURE, GOOD
 from plantcheck.storage.store import Store
 
 

@@ -12,11 +12,11 @@ from pathlib import Path
 import httpx
 from helpers import T0
 
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import GOOD
 from plantcheck.service.app import build_app
 from plantcheck.service.config import Config
 from plantcheck.storage.database import upgrade
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import GOOD
 from plantcheck.storage.store import Store
 
 

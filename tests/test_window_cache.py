@@ -7,8 +7,8 @@ import asyncio
 import numpy as np
 from helpers import T0, one_loop_config
 
-from plantcheck.storage.samples import Sample
-from plantcheck.storage.status_codes import GOOD
+from plantcheck.core.samples import Sample
+from plantcheck.core.status_codes import GOOD
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import LoopWindow
 from plantcheck.storage.window_cache import WindowCache, merge_tail, trim_head
