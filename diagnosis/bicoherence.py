@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from plantcheck.diagnosis.signal_tools import FloatArray, detrend
-from plantcheck.diagnosis.test_result import StictionTestResult
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 
 
 @dataclass(frozen=True)

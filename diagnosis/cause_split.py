@@ -22,8 +22,8 @@ import numpy as np
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf
 from plantcheck.diagnosis.oscillation import OscillationResult
 from plantcheck.diagnosis.signal_tools import FloatArray, bandpass, detrend
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 from plantcheck.diagnosis.stiction_vote import VoteResult
-from plantcheck.diagnosis.test_result import StictionTestResult
 from plantcheck.diagnosis.tuning import PIEstimate
 
 

@@ -46,6 +46,7 @@ from plantcheck.diagnosis.stick_slip import (
     detect_stick_slip,
     size_from_events,
 )
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 from plantcheck.diagnosis.stiction_vote import (
     LOOP_TYPES,
     VoteParams,
@@ -54,7 +55,6 @@ from plantcheck.diagnosis.stiction_vote import (
     is_integrating,
     vote,
 )
-from plantcheck.diagnosis.test_result import StictionTestResult
 from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_index
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (

@@ -26,7 +26,7 @@ from plantcheck.diagnosis.signal_tools import (
     interpolated_zero_crossings,
     moving_average,
 )
-from plantcheck.diagnosis.test_result import StictionTestResult, Verdict
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult, Verdict
 
 
 @dataclass(frozen=True)

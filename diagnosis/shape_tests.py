@@ -25,7 +25,7 @@ from plantcheck.diagnosis.signal_tools import (
     fit_error_to_templates,
     half_cycles,
 )
-from plantcheck.diagnosis.test_result import StictionTestResult, three_way
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult, three_way
 
 N_POINTS = 32
 

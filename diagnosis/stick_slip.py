@@ -33,7 +33,7 @@ import numpy as np
 from scipy.signal import find_peaks, lfilter
 
 from plantcheck.diagnosis.signal_tools import FloatArray, IntArray, moving_average, noise_sigma
-from plantcheck.diagnosis.test_result import StictionTestResult, Verdict
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult, Verdict
 
 
 @dataclass(frozen=True)

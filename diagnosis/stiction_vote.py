@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Literal
 
-from plantcheck.diagnosis.test_result import StictionTestResult
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 
 LOOP_TYPES = ("flow", "pressure", "level", "temperature", "composition", "other")
 INTEGRATING_TYPES = frozenset({"level"})

@@ -14,8 +14,8 @@ from plantcheck.diagnosis.shape_tests import (
     relay_index,
     significant_half_cycles,
 )
+from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 from plantcheck.diagnosis.stiction_vote import applicable_tests, vote
-from plantcheck.diagnosis.test_result import StictionTestResult
 
 T = np.arange(6000, dtype=np.float64)
 PERIOD = 100.0
