@@ -7,6 +7,8 @@
 - ``plantcheck_diagnosis_duration_seconds``: read + diagnose + store time per loop window.
 - ``plantcheck_loops``: loops per state (``ok``, ``warning``, ``fault``, ``unknown``);
   ``plantcheck_loop_state{loop, state}``: 1 for each loop's current state.
+- ``plantcheck_store_up``: 1 while the sample writer commits to the database, 0 while it
+  buffers on disk; ``plantcheck_store_failures_total``: failed commits.
 - ``plantcheck_source_up{source, protocol}``: 1 while the source delivers data, 0 while it is
   down or not yet connected.
 - ``plantcheck_diagnoses_total``: diagnoses by outcome (``done``, ``failed``).
@@ -69,6 +71,15 @@ class ServiceMetrics:
             ["loop", "state"],
             registry=r,
         )
+        self.store_up = Gauge(
+            "plantcheck_store_up",
+            "1 while samples are committed to the database, 0 while they are buffered.",
+            registry=r,
+        )
+        self.store_failures = Counter(
+            "plantcheck_store_failures", "Failed commits of samples to the database.", registry=r
+        )
+        self._store_failures_seen = 0
         self.source_up = Gauge(
             "plantcheck_source_up",
             "1 while the source delivers data, else 0.",
@@ -104,6 +115,13 @@ class ServiceMetrics:
         self.loop_state.clear()
         for loop, state in states.items():
             self.loop_state.labels(loop, state).set(1)
+
+    def set_store(self, up: bool, failures: int) -> None:
+        """The sample writer's state: up or buffering, and its failed commits so far."""
+        self.store_up.set(1 if up else 0)
+        if failures > self._store_failures_seen:
+            self.store_failures.inc(failures - self._store_failures_seen)
+            self._store_failures_seen = failures
 
     def set_sources(self, sources: Sequence[SourceHealth]) -> None:
         for h in sources:

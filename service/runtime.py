@@ -121,4 +121,5 @@ class Runtime:
         m.buffer_depth.set(w.depth)
         m.sample_rate()
         m.set_sources(self.ingestion.source_health())
+        m.set_store(w.stats.store_up, w.stats.store_failures)
         return m.render()

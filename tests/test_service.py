@@ -105,6 +105,8 @@ def test_probes_and_metrics(service: Service) -> None:
         'plantcheck_loops{state="fault"}',
         'plantcheck_loop_state{loop="FIC102",state="fault"} 1.0',
         'plantcheck_source_up{protocol="opcua",source="sim-opcua"} 0.0',
+        "plantcheck_store_up 1.0",
+        "plantcheck_store_failures_total 0.0",
     ):
         assert name in text
     assert re.search(r'plantcheck_loops\{state="fault"\} [1-9]', text)
