@@ -10,7 +10,7 @@ in holes no gap marker covers, marked gaps; then the service's log size and its 
 
     python benchmarks/soak.py --minutes 30 [--fault-every 60]
 
-``tests/test_fault_suite.py`` runs the same drill with one fault of each kind.
+``tests/service/test_fault_suite.py`` runs the same drill with one fault of each kind.
 """
 
 from __future__ import annotations

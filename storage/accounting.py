@@ -3,7 +3,7 @@
 A source's stored history is complete when every stretch without samples longer than a few
 sampling intervals touches a gap marker (``BadNoCommunication``, no value): the connector saw
 the outage and said so. A hole between two ordinary samples is a silent loss. Used by the fault
-suite (``tests/test_fault_suite.py``) and the soak benchmark (``benchmarks/soak.py``).
+suite (``tests/service/test_fault_suite.py``) and the soak benchmark (``benchmarks/soak.py``).
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from helpers import RunCli
 
 from plantcheck.diagnosis.result import CAUSES
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "simulator" / "examples" / "sticky_flow.csv"
+EXAMPLE = Path(__file__).resolve().parents[2] / "simulator" / "examples" / "sticky_flow.csv"
 DIAG_KEYS = {
     "schema", "loop_type", "chain", "samples", "sample_time_s", "cause", "confidence",
     "oscillating", "oscillation", "stiction", "valve", "indices", "actions", "notes",

@@ -11,7 +11,7 @@ import pytest
 
 from plantcheck.diagnosis.oscillation import SPECTRAL, detect_oscillation
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "isdb-oscillation-dev"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "isdb-oscillation-dev"
 
 
 def _drifting(n: int, period: float, seed: int) -> np.ndarray:

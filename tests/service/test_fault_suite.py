@@ -20,7 +20,7 @@ import pytest
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.storage.accounting import account_samples
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from soak import FAULTS, LOOPS, drill
 
 

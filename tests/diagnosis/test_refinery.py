@@ -18,7 +18,7 @@ import pytest
 from plantcheck.diagnosis import diagnose
 from plantcheck.service.records import read_record
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "refinery-stiction-dev"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "refinery-stiction-dev"
 
 pytestmark = pytest.mark.skipif(
     not (DATA / "labels.csv").is_file(),

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from helpers import RunCli
 
-CASES = sorted(p for p in (Path(__file__).parent / "record_cases").iterdir() if p.is_dir())
+CASES = sorted(p for p in (Path(__file__).parents[1] / "record_cases").iterdir() if p.is_dir())
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])

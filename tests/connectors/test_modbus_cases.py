@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from plantcheck.connectors.modbus import ModbusTag, decode_block, plan_blocks
-from plantcheck.storage import status_codes
+from plantcheck.core import status_codes
 
-CASES = sorted((Path(__file__).parent / "modbus_cases").glob("*.json"))
+CASES = sorted((Path(__file__).parents[1] / "modbus_cases").glob("*.json"))
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.stem for c in CASES])
