@@ -10,7 +10,7 @@ import pytest
 from plantcheck.core.toml_config import ConfigError
 from plantcheck.service.config import Config, load_config
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def readme_config(tmp_path: Path, pattern: str) -> Config:
