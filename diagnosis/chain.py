@@ -55,7 +55,7 @@ from plantcheck.diagnosis.stiction_vote import (
     is_integrating,
     vote,
 )
-from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_index
+from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_filter_s, idle_index
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
     BoolArray,
@@ -241,7 +241,7 @@ def diagnose(
     if not osc.oscillating:
         diag.notes.append(f"no sustained oscillation: {osc.reason}")
         ti = pi.ti_s if (pi.ti_s and pi.fit >= p.tuning.pi_min_fit) else None
-        tf = p.tuning.idle_filter_ti * ti if ti else None
+        tf = idle_filter_s(sp_s - pv_s, ts, ti, p.tuning)
         # The idle index assumes a self-regulating process: an integrating loop always needs
         # OP to overshoot to bring the level back, so the index is negative whatever the tuning.
         ii = (
