@@ -8,6 +8,7 @@ from typing import Annotated, Protocol
 
 from fastapi import Depends, Header, HTTPException, Query, Request
 
+from plantcheck.api.models import Readiness
 from plantcheck.connectors.base import SourceHealth
 from plantcheck.storage.store import LoopRow, Store
 
@@ -35,7 +36,7 @@ class ServiceBackend(Protocol):
     @property
     def held_signals(self) -> dict[str, tuple[str, ...]]: ...
 
-    async def readiness(self) -> dict[str, bool]: ...
+    async def readiness(self) -> Readiness: ...
 
     def sources(self) -> list[SourceHealth]: ...
 

@@ -30,15 +30,7 @@ async def healthz(request: Request) -> Health:
 async def readyz(backend: Backend) -> Response:
     """Readiness: the store answers, the scheduler runs and no source has been down past its
     grace period (503 otherwise)."""
-    parts = await backend.readiness()
-    down = [h.name for h in backend.sources() if h.state == "down"] if not parts["sources"] else []
-    body = Readiness(
-        ready=all(parts.values()),
-        storage=parts["storage"],
-        scheduler=parts["scheduler"],
-        sources=parts["sources"],
-        sources_down=down,
-    )
+    body = await backend.readiness()
     return JSONResponse(body.model_dump(), status_code=200 if body.ready else 503)
 
 

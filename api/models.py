@@ -123,7 +123,7 @@ class Readiness(BaseModel):
     storage: bool
     scheduler: bool
     sources: bool = Field(description="No source down past its grace period (down_grace_s).")
-    sources_down: list[str] = Field(default=[], description="Sources down when not ready.")
+    sources_down: list[str] = Field(default=[], description="Sources down past their grace.")
 
 
 class SourceOut(BaseModel):

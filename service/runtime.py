@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from plantcheck.api.models import Readiness
 from plantcheck.connectors.base import SourceHealth, now_us
 from plantcheck.service.config import Config
 from plantcheck.service.ingest import Ingestion
@@ -92,14 +93,19 @@ class Runtime:
             await self.scheduler.stop()
         await self.ingestion.stop()
 
-    async def readiness(self) -> dict[str, bool]:
+    async def readiness(self) -> Readiness:
         """Storage reachable, (when scheduling) the scheduler running, and no source down
-        past its grace period."""
-        return {
-            "storage": await self.store.ping(),
-            "scheduler": self.scheduler is None or self.scheduler.running,
-            "sources": not self.ingestion.sources_down_past_grace(now_us()),
-        }
+        past its grace period (those named)."""
+        storage = await self.store.ping()
+        scheduler = self.scheduler is None or self.scheduler.running
+        down = self.ingestion.sources_down_past_grace(now_us())
+        return Readiness(
+            ready=storage and scheduler and not down,
+            storage=storage,
+            scheduler=scheduler,
+            sources=not down,
+            sources_down=down,
+        )
 
     def sources(self) -> list[SourceHealth]:
         """Health of every data source."""
