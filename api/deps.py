@@ -9,7 +9,7 @@ from typing import Annotated, Protocol
 from fastapi import Depends, Header, HTTPException, Query, Request
 
 from plantcheck.api.models import Readiness
-from plantcheck.connectors.base import SourceHealth
+from plantcheck.core.source_health import SourceHealth
 from plantcheck.storage.store import LoopRow, Store
 
 API_KEY_HEADER = "X-API-Key"

@@ -124,6 +124,11 @@ class Readiness(BaseModel):
     scheduler: bool
     sources: bool = Field(description="No source down past its grace period (down_grace_s).")
     sources_down: list[str] = Field(default=[], description="Sources down past their grace.")
+    role: Literal["single", "leader", "standby"] = Field(
+        "single",
+        description="single: the only process (SQLite); leader: holds the scheduler lock "
+        "(PostgreSQL); standby: serves the API and takes over when the leader stops.",
+    )
 
 
 class SourceOut(BaseModel):

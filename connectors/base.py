@@ -28,7 +28,10 @@ from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
 from plantcheck.core.samples import Sample
+from plantcheck.core.source_health import SourceHealth
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
+
+__all__ = ["DeviceConnector", "SampleSink", "SourceHealth", "now_us"]
 
 SampleSink = Callable[[Sequence[Sample]], None]
 
@@ -55,29 +58,6 @@ class DeviceState:
     samples: int = 0
     up_since_us: int | None = None
     """When the device last came back (its first data after a failure or at start)."""
-
-
-@dataclass(frozen=True)
-class SourceHealth:
-    """A snapshot of one source for the API and the metrics (times in µs since the epoch).
-
-    ``state`` is ``up`` while data flows, ``down`` from the first failure until data flows
-    again, ``unknown`` before the first connection has delivered or failed.
-    """
-
-    name: str
-    protocol: str
-    state: str
-    since_us: int | None
-    last_good_sample_us: int | None
-    failures: int
-    last_error: str
-
-    def down_for_s(self, now_us: int) -> float:
-        """Seconds the source has been down (0 when it is not)."""
-        if self.state != "down" or self.since_us is None:
-            return 0.0
-        return max(0.0, (now_us - self.since_us) / 1e6)
 
 
 class DeviceConnector(ABC):

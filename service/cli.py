@@ -17,7 +17,7 @@ import typer
 
 from plantcheck import __version__
 from plantcheck.service.cli_common import LoopType, fail
-from plantcheck.service.cli_run import demo_cmd, run_cmd
+from plantcheck.service.cli_run import demo_cmd, run_cmd, worker_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
 from plantcheck.service.logs import LogOptions
@@ -274,6 +274,7 @@ app.command("simulate")(simulate_cmd)
 app.command("import")(import_cmd)
 app.command("ingest")(ingest_cmd)
 app.command("run")(run_cmd)
+app.command("worker")(worker_cmd)
 app.command("demo")(demo_cmd)
 app.add_typer(db_app, name="db")
 

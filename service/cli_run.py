@@ -149,6 +149,64 @@ def run_cmd(
     _serve(cfg, hint, None, None)
 
 
+async def _work(cfg: Config, hint: str, concurrency: int) -> None:
+    from plantcheck.service.diagnosis_queue import run_worker
+    from plantcheck.service.metrics import ServiceMetrics
+    from plantcheck.service.runtime import schedules_of
+    from plantcheck.service.scheduler import DiagnosisScheduler
+    from plantcheck.storage.database import StorageError
+    from plantcheck.storage.store import Store
+
+    d = cfg.scheduler
+    try:
+        store = await Store.open(cfg.storage.url, config_hint=hint)
+    except StorageError as exc:
+        raise fail(str(exc)) from None
+    diagnoser = DiagnosisScheduler(
+        store,
+        schedules_of(cfg),
+        concurrency,
+        ServiceMetrics(),
+        confirm=d.confirm,
+        quantify_every_s=d.quantify_every_s,
+        window_cache_mb=d.window_cache_mb,
+    )
+    try:
+        await diagnoser.open_pool()
+        await run_worker(
+            diagnoser,
+            cfg.storage.url,
+            concurrency,
+            heartbeat_s=d.heartbeat_s,
+            stalled_after_s=d.stalled_after_s,
+        )
+    finally:
+        await diagnoser.stop()
+        await store.close()
+
+
+def worker_cmd(
+    config: ConfigOpt = None,
+    concurrency: Annotated[
+        int,
+        typer.Option(
+            min=1, max=64, help="Jobs run at once, each in its own diagnosis process (cores)."
+        ),
+    ] = 2,
+) -> None:
+    """Run queued diagnosis jobs ([scheduler] engine = "queue", PostgreSQL): start one on each
+    machine that should diagnose, with the service's configuration file; SIGTERM stops it after
+    the jobs under way (a killed worker's jobs go to another after stalled_after_s)."""
+    configure_for_command("info")
+    cfg = _config(config)
+    if cfg.scheduler.engine != "queue":
+        raise fail(
+            "plantcheck worker runs jobs of the PostgreSQL job queue: set [scheduler] engine = "
+            '"queue" (and a postgresql+asyncpg:// [storage] url) in the configuration'
+        )
+    asyncio.run(_work(cfg, f" --config {config}" if config else "", concurrency))
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

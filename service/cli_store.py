@@ -117,11 +117,31 @@ def ingest_cmd(
     duration: Annotated[
         str | None, typer.Option(help="Stop after this long (e.g. 10m); default: until Ctrl-C.")
     ] = None,
+    collector: Annotated[
+        str,
+        typer.Option(
+            help="Read the sources whose `collector` is this name (a collector at the plant "
+            "feeding the central store); default: the sources without one."
+        ),
+    ] = "",
 ) -> None:
-    """Collect the configured sources into the store (no diagnosis; `plantcheck run` does both)."""
+    """Collect the configured sources into the store (no diagnosis; `plantcheck run` does both).
+    On an edge machine with --collector NAME: the sources marked `collector = "NAME"`, through
+    this machine's own store-and-forward buffer ([storage] buffer_path)."""
     from plantcheck.service.ingest import Ingestion
 
     cfg = _config(config)
+    if collector and collector not in cfg.collectors():
+        named = ", ".join(cfg.collectors()) or "none"
+        raise fail(
+            f"--collector {collector}: no [[source]] has collector = {collector!r} "
+            f"(collectors named in the configuration: {named})"
+        )
+    if not cfg.read_by(collector).source:
+        raise fail(
+            "no source to read: every [[source]] names a collector; start this with "
+            f"--collector NAME (one of {', '.join(cfg.collectors())})"
+        )
     seconds = None
     if duration is not None:
         try:
@@ -131,7 +151,9 @@ def ingest_cmd(
     configure_for_command("info")
 
     async def run() -> None:
-        ing = await Ingestion.start(cfg, config_hint=str(config or "plantcheck.toml"))
+        ing = await Ingestion.start(
+            cfg, config_hint=str(config or "plantcheck.toml"), collector=collector
+        )
         try:
             await ing.wait(seconds)
         finally:

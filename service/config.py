@@ -24,7 +24,7 @@ from urllib.parse import urlsplit
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from plantcheck.core.names import NAME_PATTERN
+from plantcheck.core.names import NAME_PATTERN, NAME_RULE
 from plantcheck.core.toml_config import ConfigError, dotted, load_toml, locate
 
 DEFAULT_CONFIG = Path("plantcheck.toml")
@@ -114,6 +114,19 @@ class SchedulerConfig(_Strict):
     """Consecutive diagnoses that must agree on a new cause before a loop's state changes."""
     quantify_every_s: float = Field(3600.0, ge=0)
     """Shortest time between two S/J estimates of one valve (0: every diagnosis)."""
+    engine: Literal["local", "queue"] = "local"
+    """Where the diagnosis runs: ``local``, this process's worker pool (any database);
+    ``queue``, jobs on the PostgreSQL job queue run by ``plantcheck worker`` processes on any
+    machine (issue 28)."""
+    batch_size: int = Field(100, ge=1, le=1000)
+    """Loops per queued job (``engine = "queue"``)."""
+    heartbeat_s: float = Field(10.0, gt=0, le=300)
+    """How often a queue worker tells the database it is alive (s)."""
+    stalled_after_s: float = Field(30.0, gt=0, le=3600)
+    """A queue worker silent this long is dead: its jobs go to another worker (s)."""
+    takeover_poll_s: float = Field(2.0, gt=0, le=60)
+    """How often a standby ``plantcheck run`` tries the scheduler lock, and the holder checks
+    it still holds it (s; PostgreSQL)."""
     window_cache_mb: float = Field(256.0, ge=0)
     """Memory for the loops' rolling windows kept between diagnoses, MB (each run then reads
     only the new samples; about 0.3 MB per loop for a 2-h window at 1 s; 0: read every window
@@ -139,6 +152,16 @@ class SourceConfig(_Strict):
     """OPC UA: data-change subscription (default) or polling."""
     down_grace_s: float = Field(60.0, ge=0, le=86400)
     """``/readyz`` says not ready once this source has been down this long (s)."""
+    collector: str = ""
+    """Read by ``plantcheck ingest --collector NAME`` on a machine at the plant, not by
+    ``plantcheck run`` (empty: the service reads it)."""
+
+    @field_validator("collector")
+    @classmethod
+    def _collector_name(cls, v: str) -> str:
+        if v and not re.match(NAME_PATTERN, v):
+            raise ValueError(f"not a collector name: use {NAME_RULE}, or leave it out")
+        return v
 
     @model_validator(mode="after")
     def _endpoint(self) -> SourceConfig:
@@ -194,9 +217,37 @@ class Config(_Strict):
     source: list[SourceConfig] = []
     loop: list[LoopConfig] = []
 
+    def collectors(self) -> list[str]:
+        """The collectors named by the sources, in configuration order."""
+        return list(dict.fromkeys(s.collector for s in self.source if s.collector))
+
+    def read_by(self, collector: str) -> Config:
+        """The sources ``collector`` reads ("" = the service) and the loops on them."""
+        mine = [s for s in self.source if s.collector == collector]
+        names = {s.name for s in mine}
+        return self.model_copy(
+            update={"source": mine, "loop": [lp for lp in self.loop if lp.source in names]}
+        )
+
     def problems(self) -> list[tuple[tuple[str | int, ...], str]]:
         """Cross-references the schema cannot check: (location, what was expected)."""
         out: list[tuple[tuple[str | int, ...], str]] = []
+        if self.scheduler.engine == "queue" and not self.storage.url.startswith("postgresql"):
+            out.append(
+                (
+                    ("scheduler", "engine"),
+                    "engine = 'queue' needs PostgreSQL: set [storage] url = "
+                    "'postgresql+asyncpg://USER@HOST:PORT/DB' or engine = 'local'",
+                )
+            )
+        if self.scheduler.stalled_after_s <= 2 * self.scheduler.heartbeat_s:
+            out.append(
+                (
+                    ("scheduler", "stalled_after_s"),
+                    "stalled_after_s must exceed twice heartbeat_s, or live workers would be "
+                    "taken for dead",
+                )
+            )
         sources = {s.name: s for s in self.source}
         for i, s in enumerate(self.source):
             if sum(x.name == s.name for x in self.source) > 1:

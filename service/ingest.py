@@ -13,9 +13,13 @@ from plantcheck.connectors.opcua import OpcUaConnector
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.service.config import Config
+from plantcheck.storage.source_health import report_health
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
 from plantcheck.storage.writer import SampleWriter
+
+HEALTH_REPORT_S = 5.0
+"""How often the sources' health is stored for the central service (s)."""
 
 
 def build_connectors(
@@ -93,13 +97,29 @@ async def restart_gaps(store: Store, writer: SampleWriter, tag_ids: Sequence[int
     ]
 
 
+def down_past_grace(cfg: Config, health: Sequence[SourceHealth], now_us: int) -> list[str]:
+    """The sources of ``health`` down longer than their ``down_grace_s``."""
+    grace = {s.name: s.down_grace_s for s in cfg.source}
+    return [
+        h.name
+        for h in health
+        if h.state == "down" and h.down_for_s(now_us) > grace.get(h.name, 0.0)
+    ]
+
+
 class Ingestion:
     """Store, sample writer and connectors of one configuration, running together."""
 
     def __init__(
-        self, cfg: Config, store: Store, writer: SampleWriter, connectors: list[DeviceConnector]
+        self,
+        cfg: Config,
+        store: Store,
+        writer: SampleWriter,
+        connectors: list[DeviceConnector],
+        collector: str = "",
     ) -> None:
         self.cfg = cfg
+        self.collector = collector
         self.store = store
         self.writer = writer
         self.connectors = connectors
@@ -113,11 +133,18 @@ class Ingestion:
         config_hint: str = "",
         on_samples: Callable[[int], None] | None = None,
         connect: bool = True,
+        collector: str = "",
     ) -> Ingestion:
-        """Open the store (refusing an unmigrated one), map the loops, start every device
-        (none without ``connect``); ``on_samples(n)`` is told of every batch received."""
+        """Open the store (refusing an unmigrated one), map the loops, start every device of
+        ``collector`` (the service's own: "") — none without ``connect``; ``on_samples(n)`` is
+        told of every batch received.
+
+        A collector stores only its own sources and loops (``Config.read_by``): collectors with
+        configuration files of different ages never overwrite each other's loops, and each
+        marks restart gaps only on the tags it reads."""
+        own = cfg.read_by(collector)
         store = await Store.open(cfg.storage.url, config_hint=config_hint)
-        loops = await store.sync_config(cfg)
+        loops = await store.sync_config(own if collector else cfg)
         writer = SampleWriter(
             store,
             Path(cfg.storage.buffer_path),
@@ -125,7 +152,7 @@ class Ingestion:
             commit_interval_s=cfg.storage.commit_interval_s,
             retention_s=cfg.storage.retention_days * 86400.0,
         )
-        tag_ids = [t for lp in loops.values() for t in lp.tags.values()]
+        tag_ids = [t for lp in own.loop for t in loops[lp.id].tags.values()]
         writer.put(await restart_gaps(store, writer, tag_ids))
         writer.start()
         sink: SampleSink = writer.put
@@ -136,10 +163,20 @@ class Ingestion:
                 count(len(rows))
                 writer.put(rows)
 
-        connectors = build_connectors(cfg, loops, sink) if connect else []
-        ing = cls(cfg, store, writer, connectors)
+        connectors = build_connectors(own, loops, sink) if connect else []
+        ing = cls(own, store, writer, connectors, collector)
         ing.tasks = [asyncio.create_task(c.run()) for c in ing.connectors]
+        if connectors:
+            ing.tasks.append(asyncio.create_task(ing._report_health(), name="health-report"))
         return ing
+
+    async def _report_health(self) -> None:
+        """Store the sources' health every ``HEALTH_REPORT_S`` for the central service (a
+        failed report is skipped: the next one replaces it)."""
+        while not self._stop.is_set():
+            with contextlib.suppress(Exception):
+                await report_health(self.store, self.collector, self.source_health(), now_us())
+            await self.wait(HEALTH_REPORT_S)
 
     def source_health(self) -> list[SourceHealth]:
         """Every configured source with loops, in configuration order."""
@@ -147,12 +184,7 @@ class Ingestion:
 
     def sources_down_past_grace(self, now_us: int) -> list[str]:
         """Sources down longer than their ``down_grace_s``."""
-        grace = {s.name: s.down_grace_s for s in self.cfg.source}
-        return [
-            h.name
-            for h in self.source_health()
-            if h.state == "down" and h.down_for_s(now_us) > grace.get(h.name, 0.0)
-        ]
+        return down_past_grace(self.cfg, self.source_health(), now_us)
 
     async def wait(self, seconds: float | None = None) -> None:
         with contextlib.suppress(TimeoutError):

@@ -13,6 +13,12 @@
   down or not yet connected.
 - ``plantcheck_diagnoses_total``: diagnoses by outcome (``done``, ``failed``).
 - ``plantcheck_window_cache_bytes``: memory held by the scheduler's rolling windows.
+- ``plantcheck_scheduler_leader``: 1 while this process holds the scheduler lock (PostgreSQL),
+  0 while it stands by.
+- Job queue (``engine = "queue"``): ``plantcheck_queue_jobs{status}`` (jobs by status),
+  ``plantcheck_queue_job_latency_seconds`` (enqueued to finished),
+  ``plantcheck_queue_jobs_skipped_total`` (a batch still waiting at its next period),
+  ``plantcheck_queue_jobs_recovered_total`` (jobs of dead workers handed on).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from collections.abc import Sequence
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 
-from plantcheck.connectors.base import SourceHealth
+from plantcheck.core.source_health import SourceHealth
 from plantcheck.diagnosis.result import STATES
 
 
@@ -84,6 +90,33 @@ class ServiceMetrics:
             "plantcheck_source_up",
             "1 while the source delivers data, else 0.",
             ["source", "protocol"],
+            registry=r,
+        )
+        self.leader = Gauge(
+            "plantcheck_scheduler_leader",
+            "1 while this process holds the scheduler lock, 0 while it stands by.",
+            registry=r,
+        )
+        self.queue_jobs = Gauge(
+            "plantcheck_queue_jobs",
+            "Diagnosis jobs in the queue by status.",
+            ["status"],
+            registry=r,
+        )
+        self.queue_job_latency = Histogram(
+            "plantcheck_queue_job_latency_seconds",
+            "Time from queueing a diagnosis job to its end.",
+            buckets=(0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0),
+            registry=r,
+        )
+        self.queue_jobs_skipped = Counter(
+            "plantcheck_queue_jobs_skipped",
+            "Batches not queued because their last job still waited.",
+            registry=r,
+        )
+        self.queue_jobs_recovered = Counter(
+            "plantcheck_queue_jobs_recovered",
+            "Jobs of dead workers handed to the queue again.",
             registry=r,
         )
         for s in STATES:

@@ -3,22 +3,101 @@
 ``Runtime.start(cfg)`` is called from the FastAPI lifespan (``service/app.py``), so the
 connectors, the APScheduler instance and the API share one event loop and one process.
 The API reaches the runtime only through the ``ServiceBackend`` protocol (``api/deps.py``):
-it reads the store and never runs a diagnosis itself.
+it reads the store and never runs a diagnosis itself. On PostgreSQL one process per database
+schedules (the holder of the scheduler lock); others stand by (``Runtime``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import asyncio
+import contextlib
+import logging
+import time
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Literal
 
 from plantcheck.api.models import Readiness
 from plantcheck.connectors.base import SourceHealth, now_us
 from plantcheck.service.config import Config
-from plantcheck.service.ingest import Ingestion
+from plantcheck.service.ingest import HEALTH_REPORT_S, Ingestion, down_past_grace
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.scheduler import DiagnosisScheduler, LoopSchedule
+from plantcheck.storage.leader_lock import LeaderLock
 from plantcheck.storage.results import loop_states
+from plantcheck.storage.source_health import ReportedHealth, reported_health
 from plantcheck.storage.store import Store
 from plantcheck.storage.window import HELD, SIGNALS
+
+if TYPE_CHECKING:  # procrastinate and psycopg are imported only by the queue engine
+    from plantcheck.service.diagnosis_queue import QueueScheduler
+
+log = logging.getLogger("plantcheck.runtime")
+
+
+def make_scheduler(
+    cfg: Config, store: Store, metrics: ServiceMetrics
+) -> DiagnosisScheduler | QueueScheduler:
+    """The configured engine: this process's worker pool, or the PostgreSQL job queue."""
+    d = cfg.scheduler
+    if d.engine == "queue":
+        from plantcheck.service.diagnosis_queue import QueueScheduler
+
+        return QueueScheduler(
+            store,
+            schedules_of(cfg),
+            metrics,
+            batch_size=d.batch_size,
+            stalled_after_s=d.stalled_after_s,
+        )
+    return DiagnosisScheduler(
+        store,
+        schedules_of(cfg),
+        d.workers,
+        metrics,
+        confirm=d.confirm,
+        quantify_every_s=d.quantify_every_s,
+        window_cache_mb=d.window_cache_mb,
+    )
+
+
+REPORT_STALE_S = 6 * HEALTH_REPORT_S
+"""A source whose reader has not reported for this long is down: its collector is gone (s)."""
+
+
+def remote_health(
+    cfg: Config, local: set[str], reports: dict[str, ReportedHealth], now: int
+) -> list[SourceHealth]:
+    """The configured sources (with loops) this process does not read, as last reported: a
+    report older than ``REPORT_STALE_S`` makes the source ``down`` since that report, naming
+    the silent collector; a source never reported is ``unknown``."""
+    used = {lp.source for lp in cfg.loop}
+    out = []
+    for src in cfg.source:
+        if src.name in local or src.name not in used:
+            continue
+        who = f"collector {src.collector!r}" if src.collector else "the scheduling service"
+        r = reports.get(src.name)
+        if r is None:
+            out.append(
+                SourceHealth(
+                    src.name, src.protocol, "unknown", None, None, 0, f"{who} has not reported yet"
+                )
+            )
+            continue
+        age_s = (now - r.reported_us) / 1e6
+        if age_s > REPORT_STALE_S:
+            out.append(
+                replace(
+                    r.health,
+                    state="down",
+                    since_us=r.reported_us,
+                    last_error=f"{who} silent for {age_s:.0f} s (its last report: "
+                    f"{r.health.state})",
+                )
+            )
+        else:
+            out.append(r.health)
+    return out
 
 
 def schedules_of(cfg: Config) -> list[LoopSchedule]:
@@ -37,45 +116,130 @@ def schedules_of(cfg: Config) -> list[LoopSchedule]:
     ]
 
 
+Role = Literal["single", "leader", "standby"]
+
+
 @dataclass
 class Runtime:
-    """The parts of a running service (``connect``/``schedule`` off: an API over the store)."""
+    """The parts of a running service (``connect``/``schedule`` off: an API over the store).
+
+    On PostgreSQL a scheduling runtime first takes the scheduler lock (``storage.leader_lock``):
+    the holder ingests its sources and schedules the diagnosis (``role`` ``leader``); a second
+    ``plantcheck run`` serves the API over the same store and stands by (``standby``), trying
+    the lock every ``takeover_poll_s``, and takes both jobs over when the holder dies. A standby
+    reads no source: two processes polling one device would store its values twice at
+    different times. SQLite has one process: ``single``.
+    """
 
     cfg: Config
-    ingestion: Ingestion
-    scheduler: DiagnosisScheduler | None
     metrics: ServiceMetrics
+    config_hint: str = ""
+    connect: bool = True
+    schedule: bool = True
+    ingestion: Ingestion | None = None
+    scheduler: DiagnosisScheduler | QueueScheduler | None = None
+    role: Role = "single"
+    _lock: LeaderLock | None = None
+    _lock_store: Store | None = None
+    _watch: asyncio.Task[None] | None = None
+    _reports: asyncio.Task[None] | None = None
+    _remote: list[SourceHealth] = field(default_factory=list)
+    """Health of the sources other processes read (collectors, the leader), from the store."""
     _stored_seen: int = 0
 
     @classmethod
     async def start(
         cls, cfg: Config, config_hint: str = "", *, connect: bool = True, schedule: bool = True
     ) -> Runtime:
-        """Open the store, start the connectors and the scheduler."""
-        metrics = ServiceMetrics()
-        ing = await Ingestion.start(cfg, config_hint, on_samples=metrics.received, connect=connect)
-        sched = None
+        """Open the store, start the connectors and the scheduler (or stand by for them)."""
+        rt = cls(cfg, ServiceMetrics(), config_hint, connect, schedule)
+        if not (schedule and cfg.storage.url.startswith("postgresql")):
+            await rt._lead()
+            rt._reports = asyncio.create_task(rt._read_reports(), name="health-reports")
+            return rt
+        rt._lock_store = await Store.open(cfg.storage.url, config_hint=config_hint)
+        rt._lock = LeaderLock(rt._lock_store)
         try:
-            if schedule:
-                sched = DiagnosisScheduler(
-                    ing.store,
-                    schedules_of(cfg),
-                    cfg.scheduler.workers,
-                    metrics,
-                    confirm=cfg.scheduler.confirm,
-                    quantify_every_s=cfg.scheduler.quantify_every_s,
-                    window_cache_mb=cfg.scheduler.window_cache_mb,
+            if await rt._lock.try_acquire():
+                await rt._lead()
+                rt.role = "leader"
+            else:
+                rt.role = "standby"
+                log.info(
+                    "another `plantcheck run` holds the scheduler lock of this database: "
+                    "standing by (serving the API; taking over when it stops)"
                 )
+        except BaseException:
+            await rt._lock.release()
+            await rt._lock_store.close()
+            raise
+        rt.metrics.leader.set(1 if rt.role == "leader" else 0)
+        rt._watch = asyncio.create_task(rt._watch_lock(), name="scheduler-lock")
+        rt._reports = asyncio.create_task(rt._read_reports(), name="health-reports")
+        return rt
+
+    async def _lead(self) -> None:
+        """Start ingesting and scheduling."""
+        cfg, metrics = self.cfg, self.metrics
+        ing = await Ingestion.start(
+            cfg, self.config_hint, on_samples=metrics.received, connect=self.connect
+        )
+        sched: DiagnosisScheduler | QueueScheduler | None = None
+        try:
+            if self.schedule:
+                sched = make_scheduler(cfg, ing.store, metrics)
                 await sched.start()
             metrics.set_loop_states(await loop_states(ing.store))
         except BaseException:
+            if sched is not None:
+                await sched.stop()
             await ing.stop()
             raise
-        return cls(cfg, ing, sched, metrics)
+        self.ingestion, self.scheduler = ing, sched
+
+    async def _step_down(self) -> None:
+        if self.scheduler is not None:
+            await self.scheduler.stop()
+        if self.ingestion is not None:
+            await self.ingestion.stop()
+        self.ingestion, self.scheduler = None, None
+
+    async def _watch_lock(self) -> None:
+        """Keep the lock (leader) or try to take it (standby), every ``takeover_poll_s``."""
+        assert self._lock is not None and self._lock_store is not None
+        lock, poll = self._lock, self.cfg.scheduler.takeover_poll_s
+        waiting_since = time.monotonic()
+        while True:
+            await asyncio.sleep(poll)
+            if lock.held and await lock.still_held():
+                continue
+            if await lock.try_acquire():
+                if self.role == "standby":
+                    try:
+                        await self._lead()
+                    except Exception as exc:
+                        log.error("taking over as the scheduler failed: %s; retrying", exc)
+                        await lock.release()
+                        continue
+                    log.warning(
+                        "took over as the scheduler after %.1f s standing by",
+                        time.monotonic() - waiting_since,
+                    )
+                    self.role = "leader"
+                    self.metrics.leader.set(1)
+            elif self.role == "leader" and await self._lock_store.ping():
+                # the database answers and another process holds the lock: it leads now
+                log.warning("another `plantcheck run` holds the scheduler lock: standing by")
+                await self._step_down()
+                self.role, waiting_since = "standby", time.monotonic()
+                self.metrics.leader.set(0)
 
     @property
     def store(self) -> Store:
-        return self.ingestion.store
+        if self.ingestion is not None:
+            return self.ingestion.store
+        assert self._lock_store is not None
+        return self._lock_store
 
     @property
     def stiction_limits(self) -> dict[str, float]:
@@ -88,28 +252,56 @@ class Runtime:
         source, which reports changes only; SP and mode otherwise)."""
         return {s.name: s.hold for s in schedules_of(self.cfg)}
 
+    async def _read_reports(self) -> None:
+        """Refresh the health of the sources this process does not read, every
+        ``HEALTH_REPORT_S`` (the last known stays while the store is unreachable)."""
+        while True:
+            with contextlib.suppress(Exception):
+                self._remote = remote_health(
+                    self.cfg, self._local_names(), await reported_health(self.store), now_us()
+                )
+            await asyncio.sleep(HEALTH_REPORT_S)
+
+    def _local_names(self) -> set[str]:
+        return {c.name for c in self.ingestion.connectors} if self.ingestion else set()
+
     async def stop(self) -> None:
-        if self.scheduler is not None:
-            await self.scheduler.stop()
-        await self.ingestion.stop()
+        for task in (self._watch, self._reports):
+            if task is not None:
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+        await self._step_down()
+        if self._lock is not None:
+            await self._lock.release()
+        if self._lock_store is not None:
+            await self._lock_store.close()
 
     async def readiness(self) -> Readiness:
-        """Storage reachable, (when scheduling) the scheduler running, and no source down
-        past its grace period (those named)."""
+        """Storage reachable, (when scheduling) the scheduler running or standing by, and no
+        source down past its grace period (those named)."""
         storage = await self.store.ping()
-        scheduler = self.scheduler is None or self.scheduler.running
-        down = self.ingestion.sources_down_past_grace(now_us())
+        scheduler = (
+            not self.schedule
+            or self.role == "standby"
+            or (self.scheduler is not None and self.scheduler.running)
+        )
+        down = down_past_grace(self.cfg, self.sources(), now_us())
         return Readiness(
             ready=storage and scheduler and not down,
             storage=storage,
             scheduler=scheduler,
             sources=not down,
             sources_down=down,
+            role=self.role,
         )
 
     def sources(self) -> list[SourceHealth]:
-        """Health of every data source."""
-        return self.ingestion.source_health()
+        """Health of every data source: those this process reads, then the others as their
+        collector (or the scheduling process) last reported them."""
+        local = self.ingestion.source_health() if self.ingestion else []
+        names = {h.name for h in local}
+        return local + [h for h in self._remote if h.name not in names]
 
     async def diagnose_now(self, loop_id: str) -> str | None:
         """Run a loop's scheduled job now (for ``POST /loops/{id}/diagnose``)."""
@@ -119,13 +311,15 @@ class Runtime:
 
     def metrics_text(self) -> bytes:
         """Refresh the gauges read from the writer, then render the Prometheus text."""
-        m, w = self.metrics, self.ingestion.writer
-        stored = w.stats.stored
-        if stored > self._stored_seen:
-            m.samples_stored.inc(stored - self._stored_seen)
-            self._stored_seen = stored
-        m.buffer_depth.set(w.depth)
+        m = self.metrics
+        if self.ingestion is not None:
+            w = self.ingestion.writer
+            stored = w.stats.stored
+            if stored > self._stored_seen:
+                m.samples_stored.inc(stored - self._stored_seen)
+                self._stored_seen = stored
+            m.buffer_depth.set(w.depth)
+            m.set_sources(self.ingestion.source_health())
+            m.set_store(w.stats.store_up, w.stats.store_failures)
         m.sample_rate()
-        m.set_sources(self.ingestion.source_health())
-        m.set_store(w.stats.store_up, w.stats.store_failures)
         return m.render()

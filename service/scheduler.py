@@ -30,6 +30,7 @@ import logging
 import multiprocessing
 import os
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -41,7 +42,7 @@ from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
 from plantcheck.service.worker_lifetime import die_with_parent
-from plantcheck.storage.results import PendingVerdict, Verdict, loop_states
+from plantcheck.storage.results import PendingVerdict, Verdict, loop_states, recent_history
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.verdict_writer import VerdictWriter
 from plantcheck.storage.window import HELD
@@ -208,6 +209,32 @@ class DiagnosisScheduler:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+    async def adopt_shared_history(self, names: Sequence[str]) -> None:
+        """Take each loop's last causes and identification time from the store.
+
+        Diagnosis workers on the job queue (issue 28) get a batch of loops wherever it lands, so
+        the confirmation streak (``confirm``), the cause that decides whether S is estimated and
+        the time of the last identified S come from the stored history, read before each batch
+        (two queries), not from this process's memory. An unreliable estimate's back-off stays
+        per process: a valve whose estimate keeps failing costs at most one attempt per worker
+        per ``quantify_every_s``.
+        """
+        if any(n not in self._loops for n in names):
+            self._loops = await self.store.loops()
+        rows = [self._loops[n] for n in names if n in self._loops and n in self.state]
+        history = await recent_history(self.store, [r.id for r in rows], max(1, self.confirm))
+        now = time.monotonic()
+        for row in rows:
+            h, st = history[row.id], self.state[row.name]
+            st.last_cause, st.streak = None, 0
+            for cause, created_us in h.causes:
+                if st.last_cause not in (None, cause):
+                    break
+                st.last_cause, st.streak, st.streak_since_us = cause, st.streak + 1, created_us
+            if h.last_identified_us is not None and h.last_window_end_us is not None:
+                age_s = (h.last_window_end_us - h.last_identified_us) / 1e6
+                st.quantify_due = max(st.quantify_due, now + self.quantify_every_s - age_s)
 
     async def run_loop(self, name: str) -> str | None:
         """Diagnose loop ``name`` now; returns its cause (None when the job failed)."""

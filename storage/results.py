@@ -347,3 +347,61 @@ async def loop_states(store: Store) -> dict[str, str]:
     q = select(loops.c.name, loops.c.state)
     async with store.engine.connect() as conn:
         return {r[0]: r[1] for r in (await conn.execute(q)).all()}
+
+
+@dataclass(frozen=True)
+class LoopHistory:
+    """What a diagnosis worker that has not seen a loop before needs of its past: the latest
+    causes (newest first, with their creation times, µs) and when its newest reliable
+    identified S was estimated (window end, µs; None when never)."""
+
+    causes: list[tuple[str, int]]
+    last_window_end_us: int | None
+    last_identified_us: int | None
+
+
+async def recent_history(store: Store, loop_ids: Sequence[int], n: int) -> dict[int, LoopHistory]:
+    """Each loop's last ``n`` diagnoses and newest reliable identified S (issue 28: the
+    diagnosis workers share the debouncing and the quantification schedule through the store,
+    not through one process's memory). Two indexed queries for the whole batch."""
+    if not loop_ids:
+        return {}
+    rank = (
+        func.row_number()
+        .over(
+            partition_by=diagnoses.c.loop_id,
+            order_by=(diagnoses.c.window_end_us.desc(), diagnoses.c.id.desc()),
+        )
+        .label("rank")
+    )
+    latest = (
+        select(
+            diagnoses.c.loop_id,
+            diagnoses.c.cause,
+            diagnoses.c.created_us,
+            diagnoses.c.window_end_us,
+            rank,
+        )
+        .where(diagnoses.c.loop_id.in_(loop_ids))
+        .subquery()
+    )
+    q = select(latest).where(latest.c.rank <= n).order_by(latest.c.loop_id, latest.c.rank)
+    est = (
+        select(stiction_estimates.c.loop_id, func.max(stiction_estimates.c.at_us))
+        .where(
+            stiction_estimates.c.loop_id.in_(loop_ids),
+            stiction_estimates.c.reliable.is_(True),
+            stiction_estimates.c.method.in_(("hammerstein", "measured")),
+        )
+        .group_by(stiction_estimates.c.loop_id)
+    )
+    async with store.engine.connect() as conn:
+        rows = (await conn.execute(q)).all()
+        identified = {int(r[0]): int(r[1]) for r in (await conn.execute(est)).all()}
+    causes: dict[int, list[tuple[str, int]]] = {i: [] for i in loop_ids}
+    ends: dict[int, int] = {}
+    for r in rows:
+        causes[int(r.loop_id)].append((str(r.cause), int(r.created_us)))
+        if r.rank == 1:
+            ends[int(r.loop_id)] = int(r.window_end_us)
+    return {i: LoopHistory(causes[i], ends.get(i), identified.get(i)) for i in loop_ids}

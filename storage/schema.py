@@ -35,6 +35,22 @@ sources = Table(
     Column("endpoint", String(256), nullable=False, default=""),
 )
 
+source_health = Table(
+    "source_health",
+    metadata,
+    # the last health report of each source from the process that reads it (a collector at the
+    # plant, or the service): the central API shows sources it does not read itself (issue 28)
+    Column("name", String(64), primary_key=True),
+    Column("collector", String(64), nullable=False, default=""),
+    Column("protocol", String(16), nullable=False),
+    Column("state", String(16), nullable=False),
+    Column("since_us", BigInteger, nullable=True),
+    Column("last_good_sample_us", BigInteger, nullable=True),
+    Column("failures", Integer, nullable=False, default=0),
+    Column("last_error", Text, nullable=False, default=""),
+    Column("reported_us", BigInteger, nullable=False),
+)
+
 loops = Table(
     "loops",
     metadata,

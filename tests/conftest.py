@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import subprocess
 import sys
 import tempfile
@@ -78,18 +77,6 @@ def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
         url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
     else:
         cluster: PgCluster = request.getfixturevalue("pg_cluster")
-        name = f"t{uuid.uuid4().hex[:12]}"
-        asyncio.run(_create_database(cluster.url, name))
-        url = cluster.url.rsplit("/", 1)[0] + f"/{name}"
+        url = cluster.create_database(f"t{uuid.uuid4().hex[:12]}")
     upgrade(url)
     yield url
-
-
-async def _create_database(url: str, name: str) -> None:
-    import asyncpg
-
-    conn = await asyncpg.connect(url.replace("postgresql+asyncpg", "postgresql"))
-    try:
-        await conn.execute(f"CREATE DATABASE {name}")
-    finally:
-        await conn.close()
