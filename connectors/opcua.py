@@ -28,6 +28,7 @@ from typing import Any
 from asyncua import Client, ua
 
 from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
+from plantcheck.connectors.opcua_security import OpcUaSecurity, explain_refusal, secure
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_DATA_ENCODING_INVALID, is_bad
 
@@ -82,11 +83,15 @@ class OpcUaConnector(DeviceConnector):
         mode: str = "subscribe",
         timeout_s: float = 4.0,
         watchdog_s: float | None = None,
+        security: OpcUaSecurity | None = None,
         **kw: float,
     ) -> None:
         super().__init__(name, sink, [t for t, _ in tags], held=(), **kw)  # changes only already
         self.url = url
-        self.nodes = [(tid, ua.NodeId.from_string(n)) for tid, n in tags]
+        self.security = security
+        self.configured = [(tid, ua.NodeId.from_string(n)) for tid, n in tags]
+        """Node ids as configured: ``nsu=`` ones name their namespace by URI."""
+        self.nodes = self.configured
         self.by_node = {n.to_string(): tid for tid, n in self.nodes}
         self.sampling_interval_s = sampling_interval_s
         self.mode = mode
@@ -109,9 +114,42 @@ class OpcUaConnector(DeviceConnector):
         client = Client(self.url, timeout=self.timeout_s, auto_reconnect=False)
         client.connection_lost_callback = self._lost
         self._lost_exc = None
-        await client.connect()
+        try:
+            if self.security is not None:
+                await secure(client, self.security, self.name)
+            await client.connect()
+        except Exception as exc:
+            hint = explain_refusal(exc, self.security) if self.security else None
+            if hint is None:
+                raise
+            raise ConnectionRefusedError(hint) from exc
         self.client = client
+        try:
+            await self._resolve_namespaces()
+        except Exception:
+            await self.close()
+            raise
         self._last_data_us = now_us()
+
+    async def _resolve_namespaces(self) -> None:
+        """Give ``nsu=`` node ids the index the server has for their namespace URI now (an
+        index may change when the server restarts; the URI does not)."""
+        if not any(getattr(n, "NamespaceUri", None) for _, n in self.configured):
+            return
+        assert self.client is not None
+        table = list(await self.client.get_namespace_array())
+        nodes = []
+        for tid, n in self.configured:
+            uri = getattr(n, "NamespaceUri", None)
+            if uri:
+                if uri not in table:
+                    raise LookupError(
+                        f"namespace {uri!r} is not on this server (it has: {', '.join(table)})"
+                    )
+                n = ua.NodeId(n.Identifier, table.index(uri), n.NodeIdType)
+            nodes.append((tid, n))
+        self.nodes = nodes
+        self.by_node = {n.to_string(): tid for tid, n in nodes}
 
     def emit(self, rows: Sequence[Sample]) -> None:
         self._last_data_us = now_us()

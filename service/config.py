@@ -17,12 +17,13 @@ Tag syntax:
 from __future__ import annotations
 
 import ipaddress
+import os
 import re
 from pathlib import Path
 from typing import Literal
 from urllib.parse import urlsplit
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, SecretStr, field_validator, model_validator
 
 from plantcheck.core.names import NAME_PATTERN, NAME_RULE
 from plantcheck.core.toml_config import ConfigError, dotted, load_toml, locate
@@ -152,6 +153,23 @@ class SourceConfig(_Strict):
     """OPC UA: data-change subscription (default) or polling."""
     down_grace_s: float = Field(60.0, ge=0, le=86400)
     """``/readyz`` says not ready once this source has been down this long (s)."""
+    security_policy: Literal["None", "Basic256Sha256"] = "None"
+    """OPC UA message security; ``Basic256Sha256`` with ``security_mode``."""
+    security_mode: Literal["Sign", "SignAndEncrypt"] = "SignAndEncrypt"
+    certificate: str = "pki/plantcheck-client.der"
+    """This client's application certificate (DER), generated self-signed on first start when
+    absent: give it to the server's trusted certificates."""
+    private_key: str = "pki/plantcheck-client.pem"
+    """Its private key (PEM), generated with the certificate (mode 0600)."""
+    server_certificate: str = ""
+    """The server's certificate to pin (DER or PEM); empty: the one its endpoint offers."""
+    username: str = ""
+    password: SecretStr = SecretStr("")
+    """Better from ``password_env`` or ``password_file`` than in this file."""
+    password_env: str = ""
+    """Environment variable holding the password (read at start)."""
+    password_file: str = ""
+    """File holding the password (first line; e.g. a systemd credential)."""
     collector: str = ""
     """Read by ``plantcheck ingest --collector NAME`` on a machine at the plant, not by
     ``plantcheck run`` (empty: the service reads it)."""
@@ -162,6 +180,38 @@ class SourceConfig(_Strict):
         if v and not re.match(NAME_PATTERN, v):
             raise ValueError(f"not a collector name: use {NAME_RULE}, or leave it out")
         return v
+
+    @model_validator(mode="after")
+    def _secret(self) -> SourceConfig:
+        given = [k for k in ("password", "password_env", "password_file") if self._given(k)]
+        if len(given) > 1:
+            raise ValueError(
+                f"source {self.name!r}: give the password one way, not {' and '.join(given)}"
+            )
+        if self.password_env:
+            value = os.environ.get(self.password_env)
+            if value is None:
+                raise ValueError(
+                    f"source {self.name!r}: password_env = {self.password_env!r} but that "
+                    "environment variable is not set (set it, or use password_file)"
+                )
+            self.password = SecretStr(value)
+        elif self.password_file:
+            try:
+                lines = Path(self.password_file).read_text(encoding="utf-8").splitlines()
+            except OSError as exc:
+                raise ValueError(
+                    f"source {self.name!r}: password_file {self.password_file!r} cannot be "
+                    f"read ({exc.strerror})"
+                ) from None
+            self.password = SecretStr(lines[0] if lines else "")
+        if (self.username or given) and self.protocol != "opcua":
+            raise ValueError(f"source {self.name!r}: username and password are OPC UA settings")
+        return self
+
+    def _given(self, key: str) -> bool:
+        value = getattr(self, key)
+        return bool(value.get_secret_value() if isinstance(value, SecretStr) else value)
 
     @model_validator(mode="after")
     def _endpoint(self) -> SourceConfig:

@@ -10,9 +10,10 @@ from pathlib import Path
 from plantcheck.connectors.base import DeviceConnector, SampleSink, SourceHealth, now_us
 from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
 from plantcheck.connectors.opcua import OpcUaConnector
+from plantcheck.connectors.opcua_security import OpcUaSecurity
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
-from plantcheck.service.config import Config
+from plantcheck.service.config import Config, SourceConfig
 from plantcheck.storage.source_health import report_health
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
@@ -20,6 +21,20 @@ from plantcheck.storage.writer import SampleWriter
 
 HEALTH_REPORT_S = 5.0
 """How often the sources' health is stored for the central service (s)."""
+
+
+def security_of(src: SourceConfig) -> OpcUaSecurity | None:
+    """The OPC UA security of a source (None: ``security_policy = "None"``)."""
+    if src.security_policy == "None":
+        return None
+    return OpcUaSecurity(
+        certificate=Path(src.certificate),
+        private_key=Path(src.private_key),
+        mode=src.security_mode,
+        server_certificate=Path(src.server_certificate) if src.server_certificate else None,
+        username=src.username,
+        password=src.password.get_secret_value(),
+    )
 
 
 def build_connectors(
@@ -72,6 +87,7 @@ def build_connectors(
                     sampling_interval_s=src.poll_interval_s,
                     mode=src.mode,
                     timeout_s=src.timeout_s,
+                    security=security_of(src),
                 )
             )
     return out

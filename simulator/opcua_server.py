@@ -13,10 +13,18 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Awaitable, Callable
 from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
 
 from asyncua import Server, ua
+from asyncua.common.utils import ServiceError
+from asyncua.crypto.permission_rules import User, UserRole
+from cryptography import x509
+from cryptography.hazmat.primitives import serialization
 
+from plantcheck.connectors.opcua_security import ensure_certificate
 from plantcheck.simulator.faults import FaultState
 from plantcheck.simulator.plant import Plant
 from plantcheck.simulator.scenario import SIGNALS, OpcUaSpec, Scenario
@@ -41,6 +49,60 @@ def _eu(unit: str) -> ua.EUInformation:
     )
 
 
+SERVER_URI = "urn:plantcheck:simulator:server"
+
+
+class OneUser:
+    """A user manager that knows one user name and password (a test plant's login)."""
+
+    def __init__(self, username: str, password: str) -> None:
+        self.username, self.password = username, password
+
+    def get_user(
+        self,
+        iserver: Any,
+        username: str | None = None,
+        password: str | None = None,
+        certificate: Any = None,
+    ) -> User | None:
+        if username == self.username and password == self.password:
+            return User(role=UserRole.User, name=username)
+        return None
+
+
+def trusted_only(folder: Path) -> Callable[[x509.Certificate, Any], Awaitable[None]]:
+    """A certificate check that accepts the client certificates found in ``folder`` (read at
+    each connection, so a certificate copied there is trusted at once) and refuses others."""
+
+    async def validate(cert: x509.Certificate, app_description: Any) -> None:
+        der = cert.public_bytes(serialization.Encoding.DER)
+        for f in sorted(folder.glob("*")):
+            data = f.read_bytes()
+            known = x509.load_pem_x509_certificate(data) if data.startswith(b"-----") else None
+            if der == data or (known is not None and known == cert):
+                return
+        raise ServiceError(ua.StatusCodes.BadCertificateUntrusted)
+
+    return validate
+
+
+async def _secure(server: Server, spec: OpcUaSpec) -> None:
+    """Basic256Sha256 endpoints (Sign, SignAndEncrypt) with the server's certificate."""
+    server.set_security_policy(
+        [
+            ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
+            ua.SecurityPolicyType.Basic256Sha256_Sign,
+        ]
+    )
+    await server.set_application_uri(SERVER_URI)
+    cert, key = Path(spec.certificate), Path(spec.private_key)
+    await ensure_certificate(cert, key, SERVER_URI, server=True)
+    await server.load_certificate(str(cert))
+    await server.load_private_key(str(key))
+    if spec.trusted_dir:
+        server.set_certificate_validator(trusted_only(Path(spec.trusted_dir)))
+
+
 class OpcUaPlantServer:
     """Serves a ``Plant`` over OPC UA; ``publish`` writes the latest sample of every loop."""
 
@@ -54,28 +116,35 @@ class OpcUaPlantServer:
 
     async def start(self) -> None:
         logging.getLogger("asyncua").setLevel(logging.WARNING)
-        server = Server()
+        spec = self.spec
+        users = OneUser(spec.username, spec.password) if spec.username else None
+        server = Server(user_manager=users)
         await server.init()
-        server.set_endpoint(self.spec.url)
+        server.set_endpoint(spec.url)
         server.set_server_name("plantcheck simulator")
-        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        if spec.security_policy == "Basic256Sha256":
+            await _secure(server, spec)
+        else:
+            server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        if users is not None:
+            server.set_identity_tokens([ua.UserNameIdentityToken])
         idx = await server.register_namespace(self.spec.namespace)
         self.namespace_index = idx
         objects = server.nodes.objects
         self._nodes = []
-        for spec in self.scenario.loop:
-            obj = await objects.add_object(node_id(idx, spec.id), f"{idx}:{spec.id}")
+        for lp in self.scenario.loop:
+            obj = await objects.add_object(node_id(idx, lp.id), f"{idx}:{lp.id}")
             row: list[ua.NodeId | None] = []
             for sig in SIGNALS:
-                if sig == "MV" and not spec.expose_mv:
+                if sig == "MV" and not lp.expose_mv:
                     row.append(None)
                     continue
                 var = await obj.add_variable(
-                    node_id(idx, spec.id, sig), f"{idx}:{sig}", 0.0, ua.VariantType.Double
+                    node_id(idx, lp.id, sig), f"{idx}:{sig}", 0.0, ua.VariantType.Double
                 )
-                unit = spec.unit if sig in ("SP", "PV") else ("%" if sig != "Mode" else "")
+                unit = lp.unit if sig in ("SP", "PV") else ("%" if sig != "Mode" else "")
                 if unit:
-                    lo, hi = spec.range if sig in ("SP", "PV") else (0.0, 100.0)
+                    lo, hi = lp.range if sig in ("SP", "PV") else (0.0, 100.0)
                     await var.add_property(idx, "EngineeringUnits", _eu(unit))
                     await var.add_property(idx, "EURange", ua.Range(Low=lo, High=hi))
                 row.append(var.nodeid)

@@ -66,6 +66,17 @@ class OpcUaSpec(_Strict):
     enabled: bool = True
     url: str = "opc.tcp://127.0.0.1:4840/plantcheck/"
     namespace: str = "urn:plantcheck:simulator"
+    security_policy: Literal["None", "Basic256Sha256"] = "None"
+    """``Basic256Sha256``: Sign and SignAndEncrypt endpoints only, with the certificate below."""
+    certificate: str = "pki/simulator-server.der"
+    """Server certificate (DER) and key (PEM), generated self-signed when absent."""
+    private_key: str = "pki/simulator-server.pem"
+    trusted_dir: str = ""
+    """Folder of trusted client certificates (DER or PEM): any other client is refused with
+    BadCertificateUntrusted. Empty: every client certificate is accepted."""
+    username: str = ""
+    """When set, the only user the server accepts (with ``password``): a test plant's login."""
+    password: str = ""
 
     @field_validator("url")
     @classmethod

@@ -71,3 +71,23 @@ def test_readme_service_keys_are_valid_configuration(tmp_path: Path) -> None:
     cfg = readme_config(tmp_path, r"```toml\n(\[api\].*?)\[\[loop\]\]")
     assert cfg.scheduler.confirm == 2 and cfg.scheduler.quantify_every_s == 3600
     assert cfg.scheduler.window_cache_mb == 256
+
+
+def test_opcua_password_comes_from_the_environment_or_a_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("PLANTCHECK_TEST_PW", "from-env")
+    (tmp_path / "pw").write_text("from-file\n", encoding="utf-8")
+    source = (
+        '[[source]]\nname = "{n}"\nprotocol = "opcua"\nurl = "opc.tcp://10.0.0.5:4840/"\n'
+        'security_policy = "Basic256Sha256"\nusername = "plantcheck"\n{k} = "{v}"\n'
+    )
+    path = tmp_path / "plantcheck.toml"
+    path.write_text(
+        source.format(n="a", k="password_env", v="PLANTCHECK_TEST_PW")
+        + source.format(n="b", k="password_file", v=tmp_path / "pw"),
+        encoding="utf-8",
+    )
+    cfg = load_config(path)
+    assert [s.password.get_secret_value() for s in cfg.source] == ["from-env", "from-file"]
+    assert "from-env" not in repr(cfg) and "from-file" not in repr(cfg)  # SecretStr
