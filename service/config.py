@@ -54,6 +54,34 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def read_secret(what: str, inline: str, env: str, file: str) -> str | None:
+    """A secret given at most one way: in the file (``inline``), by the name of an environment
+    variable (``env``) or of a file whose first line holds it (``file``, e.g. a systemd
+    credential); None when not given. ValueError naming ``what`` and the fix otherwise."""
+    given = [k for k, v in (("inline", inline), ("_env", env), ("_file", file)) if v]
+    name = what.rsplit(" ", 1)[-1]
+    if len(given) > 1:
+        keys = [name if k == "inline" else name + k for k in given]
+        raise ValueError(f"{what}: give it one way, not {' and '.join(keys)}")
+    if env:
+        value = os.environ.get(env)
+        if value is None:
+            raise ValueError(
+                f"{what}: {name}_env = {env!r} but that environment variable is not set (set "
+                f"it, or use {name}_file)"
+            )
+        return value
+    if file:
+        try:
+            lines = Path(file).read_text(encoding="utf-8").splitlines()
+        except OSError as exc:
+            raise ValueError(
+                f"{what}: {name}_file {file!r} cannot be read ({exc.strerror})"
+            ) from None
+        return lines[0] if lines else ""
+    return inline or None
+
+
 class StorageConfig(_Strict):
     """Where samples and diagnoses live; the URL decides the database."""
 
@@ -82,8 +110,12 @@ class ApiConfig(_Strict):
 
     host: str = "127.0.0.1"
     port: int = Field(8000, ge=0, le=65535)
-    api_key: str = ""
+    api_key: str = Field("", repr=False)
     """Required (header ``X-API-Key``) for every endpoint that changes anything."""
+    api_key_env: str = ""
+    """Environment variable holding the API key (instead of ``api_key`` in this file)."""
+    api_key_file: str = ""
+    """File whose first line is the API key (e.g. a systemd credential)."""
     require_key_for_reads: bool = False
     allow_unauthenticated: bool = False
     """Serve reads without a key on an address other machines can reach (``host`` not
@@ -91,6 +123,8 @@ class ApiConfig(_Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> ApiConfig:
+        key = read_secret("[api] api_key", self.api_key, self.api_key_env, self.api_key_file)
+        self.api_key = key or ""
         if self.require_key_for_reads and not self.api_key:
             raise ValueError(
                 "require_key_for_reads = true needs api_key: set [api] api_key (or drop "
@@ -183,35 +217,17 @@ class SourceConfig(_Strict):
 
     @model_validator(mode="after")
     def _secret(self) -> SourceConfig:
-        given = [k for k in ("password", "password_env", "password_file") if self._given(k)]
-        if len(given) > 1:
-            raise ValueError(
-                f"source {self.name!r}: give the password one way, not {' and '.join(given)}"
-            )
-        if self.password_env:
-            value = os.environ.get(self.password_env)
-            if value is None:
-                raise ValueError(
-                    f"source {self.name!r}: password_env = {self.password_env!r} but that "
-                    "environment variable is not set (set it, or use password_file)"
-                )
-            self.password = SecretStr(value)
-        elif self.password_file:
-            try:
-                lines = Path(self.password_file).read_text(encoding="utf-8").splitlines()
-            except OSError as exc:
-                raise ValueError(
-                    f"source {self.name!r}: password_file {self.password_file!r} cannot be "
-                    f"read ({exc.strerror})"
-                ) from None
-            self.password = SecretStr(lines[0] if lines else "")
-        if (self.username or given) and self.protocol != "opcua":
+        found = read_secret(
+            f"source {self.name!r}: password",
+            self.password.get_secret_value(),
+            self.password_env,
+            self.password_file,
+        )
+        if found is not None:
+            self.password = SecretStr(found)
+        if (self.username or found is not None) and self.protocol != "opcua":
             raise ValueError(f"source {self.name!r}: username and password are OPC UA settings")
         return self
-
-    def _given(self, key: str) -> bool:
-        value = getattr(self, key)
-        return bool(value.get_secret_value() if isinstance(value, SecretStr) else value)
 
     @model_validator(mode="after")
     def _endpoint(self) -> SourceConfig:

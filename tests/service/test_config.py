@@ -91,3 +91,11 @@ def test_opcua_password_comes_from_the_environment_or_a_file(
     cfg = load_config(path)
     assert [s.password.get_secret_value() for s in cfg.source] == ["from-env", "from-file"]
     assert "from-env" not in repr(cfg) and "from-file" not in repr(cfg)  # SecretStr
+
+
+def test_api_key_comes_from_a_file(tmp_path: Path) -> None:
+    (tmp_path / "key").write_text("k-123\n", encoding="utf-8")
+    path = tmp_path / "plantcheck.toml"
+    path.write_text(f'[api]\napi_key_file = "{tmp_path / "key"}"\n', encoding="utf-8")
+    cfg = load_config(path)
+    assert cfg.api.api_key == "k-123" and "k-123" not in repr(cfg)
