@@ -140,6 +140,7 @@ class QueueScheduler:
         self._scheduler: Any = None
         self._finished_after = 0
         self._watch_failing = False
+        self._queue_failing = False
         self._behind: set[str] = set()
         """Batches whose last job still waited at their next period (logged once)."""
 
@@ -202,8 +203,15 @@ class QueueScheduler:
             self._behind.add(batch.key)
             return None
         except Exception as exc:
-            log.warning("queueing %s failed: %s", batch.key, exc)
+            if not self._queue_failing:
+                log.warning(
+                    "queueing %s failed: %s (logged once until it recovers)", batch.key, exc
+                )
+            self._queue_failing = True
             return None
+        if self._queue_failing:
+            log.info("queueing jobs recovered")
+            self._queue_failing = False
         if loops is None and batch.key in self._behind:
             self._behind.discard(batch.key)
             log.info("%s queued on time again", batch.key)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -18,6 +19,8 @@ from plantcheck.storage.source_health import report_health
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
 from plantcheck.storage.writer import SampleWriter
+
+log = logging.getLogger("plantcheck.ingest")
 
 HEALTH_REPORT_S = 5.0
 """How often the sources' health is stored for the central service (s)."""
@@ -140,6 +143,8 @@ class Ingestion:
         self.writer = writer
         self.connectors = connectors
         self.tasks: list[asyncio.Task[None]] = []
+        """One per connector."""
+        self._health_task: asyncio.Task[None] | None = None
         self._stop = asyncio.Event()
 
     @classmethod
@@ -160,6 +165,7 @@ class Ingestion:
         marks restart gaps only on the tags it reads."""
         own = cfg.read_by(collector)
         store = await Store.open(cfg.storage.url, config_hint=config_hint)
+        log.info("store: %s", await store.storage_mode())
         loops = await store.sync_config(own if collector else cfg)
         writer = SampleWriter(
             store,
@@ -183,7 +189,7 @@ class Ingestion:
         ing = cls(own, store, writer, connectors, collector)
         ing.tasks = [asyncio.create_task(c.run()) for c in ing.connectors]
         if connectors:
-            ing.tasks.append(asyncio.create_task(ing._report_health(), name="health-report"))
+            ing._health_task = asyncio.create_task(ing._report_health(), name="health-report")
         return ing
 
     async def _report_health(self) -> None:
@@ -211,5 +217,7 @@ class Ingestion:
         for c in self.connectors:
             c.stop()
         await asyncio.gather(*self.tasks, return_exceptions=True)
+        if self._health_task is not None:
+            await asyncio.gather(self._health_task, return_exceptions=True)
         await self.writer.stop()
         await self.store.close()

@@ -122,6 +122,24 @@ class Store:
         except Exception:
             return False
 
+    async def storage_mode(self) -> str:
+        """Which database and sample layout this store runs on, for the start-up log."""
+        if self.dialect != "postgresql":
+            return "SQLite (WAL); retention: hourly range deletes per tag"
+        async with self.engine.connect() as conn:
+            version = (await conn.execute(text("SHOW server_version"))).scalar_one()
+            tsdb = (
+                await conn.execute(
+                    text("SELECT extversion FROM pg_extension WHERE extname = 'timescaledb'")
+                )
+            ).scalar()
+        layout = (
+            f"samples a TimescaleDB {tsdb} hypertable of one-day chunks"
+            if tsdb
+            else "plain tables (TimescaleDB not installed)"
+        )
+        return f"PostgreSQL {version}, {layout}; retention: hourly range deletes per tag"
+
     # -- configuration -------------------------------------------------------------------
     async def sync_config(self, cfg: PlantSettings) -> dict[str, LoopRow]:
         """Create or update sources, loops and their tag mapping from the configuration

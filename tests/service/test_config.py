@@ -67,10 +67,15 @@ def test_deploy_example_is_a_valid_configuration() -> None:
     assert cfg.loop[0].stiction_limit == 2.0
 
 
-def test_readme_service_keys_are_valid_configuration(tmp_path: Path) -> None:
+def test_readme_service_keys_are_valid_configuration(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("PLANTCHECK_UNIT1_PASSWORD", "pw")
     cfg = readme_config(tmp_path, r"```toml\n(\[api\].*?)\[\[loop\]\]")
     assert cfg.scheduler.confirm == 2 and cfg.scheduler.quantify_every_s == 3600
-    assert cfg.scheduler.window_cache_mb == 256
+    assert cfg.scheduler.window_cache_mb == 256 and cfg.scheduler.engine == "local"
+    assert cfg.source[0].collector == "unit1"
+    assert cfg.source[0].password.get_secret_value() == "pw"
 
 
 def test_opcua_password_comes_from_the_environment_or_a_file(
@@ -99,3 +104,12 @@ def test_api_key_comes_from_a_file(tmp_path: Path) -> None:
     path.write_text(f'[api]\napi_key_file = "{tmp_path / "key"}"\n', encoding="utf-8")
     cfg = load_config(path)
     assert cfg.api.api_key == "k-123" and "k-123" not in repr(cfg)
+
+
+def test_deploy_site_example_is_a_valid_configuration(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PLANTCHECK_API_KEY", "k")
+    monkeypatch.setenv("PLANTCHECK_UNIT1_OPCUA_PASSWORD", "p")
+    cfg = load_config(ROOT / "deploy" / "site.example.toml")
+    assert cfg.scheduler.engine == "queue" and cfg.collectors() == ["unit1", "unit2"]
+    assert [lp.id for lp in cfg.read_by("unit1").loop] == ["10-FIC-101"]
+    assert cfg.read_by("").source == []  # the service machine reads no source itself
