@@ -95,7 +95,8 @@ def test_probes_and_metrics(service: Service) -> None:
     ready = httpx.get(f"{service.url}/readyz").json()
     # the source is down (nobody serves it) but within its grace period (a day here)
     assert ready == {
-        "ready": True, "storage": True, "scheduler": True, "sources": True, "sources_down": []
+        "ready": True, "storage": True, "scheduler": True, "sources": True, "sources_down": [],
+        "role": "single",  # SQLite: one process does everything
     }  # fmt: skip
     text = httpx.get(f"{service.url}/metrics").text
     for name in (
