@@ -137,7 +137,7 @@ def ingest_cmd(
             f"--collector {collector}: no [[source]] has collector = {collector!r} "
             f"(collectors named in the configuration: {named})"
         )
-    if not cfg.read_by(collector).source:
+    if cfg.source and not cfg.read_by(collector).source:
         raise fail(
             "no source to read: every [[source]] names a collector; start this with "
             f"--collector NAME (one of {', '.join(cfg.collectors())})"
