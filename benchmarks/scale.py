@@ -224,6 +224,10 @@ def main() -> None:
             start(f"worker-{w}", "worker", "--concurrency", "1")
         api = f"http://127.0.0.1:{api_port}"
         for _ in range(600):
+            for name, p in procs.items():
+                if p.poll() is not None:
+                    tail = (folder / f"{name}.log").read_text(errors="replace")[-2000:]
+                    raise SystemExit(f"{name} exited with {p.returncode}:\n{tail}")
             try:
                 if httpx.get(f"{api}/readyz", timeout=2).status_code in (200, 503):
                     break

@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy import and_, bindparam, delete, func, insert, select, text, update
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
 from sqlalchemy.sql.elements import ColumnElement
 
@@ -143,7 +144,22 @@ class Store:
     # -- configuration -------------------------------------------------------------------
     async def sync_config(self, cfg: PlantSettings) -> dict[str, LoopRow]:
         """Create or update sources, loops and their tag mapping from the configuration
-        (the service's ``Config``; any object of that shape)."""
+        (the service's ``Config``; any object of that shape).
+
+        Collectors, workers and the service may start together on one database and create the
+        same rows at once: the loser of such a race (a unique violation) finds the rows there
+        and runs again as an update."""
+        for attempt in range(5):
+            try:
+                await self._sync_config(cfg)
+                break
+            except IntegrityError:
+                if attempt == 4:
+                    raise
+                await asyncio.sleep(0.1 * (attempt + 1))
+        return await self.loops()
+
+    async def _sync_config(self, cfg: PlantSettings) -> None:
         async with self.engine.begin() as conn:
             for s in cfg.source:
                 endpoint = s.url or f"{s.host}:{s.port}/{s.device_id}"
@@ -162,7 +178,6 @@ class Store:
                     )
             for lp in cfg.loop:
                 await self._upsert_loop(conn, lp.id, lp.type, lp.source, lp.description, lp.tags())
-        return await self.loops()
 
     async def ensure_loop(
         self, name: str, loop_type: str = "other", source: str = "", signals: Sequence[str] = ()

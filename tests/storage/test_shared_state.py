@@ -74,3 +74,22 @@ def test_one_holder_of_the_scheduler_lock(db_url: str) -> None:
             await second.close()
 
     asyncio.run(run())
+
+
+def test_roles_starting_together_map_the_same_loops_once(db_url: str) -> None:
+    """A service, its workers and collectors start at once on one database: each maps the
+    site's sources and loops, and the losers of the insert race update instead of failing."""
+    from helpers import one_loop_config
+
+    cfg = one_loop_config()
+
+    async def run() -> None:
+        stores = [await Store.open(db_url) for _ in range(4)]
+        try:
+            maps = await asyncio.gather(*(s.sync_config(cfg) for s in stores))
+            assert all(m == maps[0] for m in maps) and list(maps[0]) == [cfg.loop[0].id]
+        finally:
+            for s in stores:
+                await s.close()
+
+    asyncio.run(run())
