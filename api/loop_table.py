@@ -37,21 +37,50 @@ class LoopTable:
     """Cached rows and JSON body of the whole table, ``ttl_s`` seconds old at most once warm.
 
     Stale-while-revalidate: after the first build a reader never waits for the store; a stale
-    table is served while one background refresh runs.
+    table is served while one background refresh runs. A refresh reads only the loops diagnosed
+    since the last one (with ``margin_s`` for the clocks of workers on other machines) and keeps
+    each row's JSON, so at 10,000 loops it costs a few milliseconds of the event loop instead of
+    the 150-250 ms a whole rebuild takes; the whole table is still read every ``full_every_s``
+    (a loop's description or type changed by a configuration, an estimate stored late).
     """
 
-    def __init__(self, ttl_s: float = 1.0) -> None:
+    def __init__(
+        self, ttl_s: float = 1.0, full_every_s: float = 300.0, margin_s: float = 2.0
+    ) -> None:
         self.ttl_s = ttl_s
+        self.full_every_s = full_every_s
+        self.margin_us = int(margin_s * 1e6)
         self._at = -float("inf")
+        self._full_at = -float("inf")
         self._rows: list[dict[str, Any]] = []
         self._body = b"[]"
+        self._by_id: dict[str, tuple[dict[str, Any], bytes]] = {}
+        self._newest_us: int | None = None
         self._lock = asyncio.Lock()
         self._refresh: asyncio.Task[None] | None = None
 
     async def _build(self, store: Store) -> None:
-        rows = [loop_json(s) for s in await loop_statuses(store)]
-        self._rows, self._body = rows, json.dumps(rows, separators=(",", ":")).encode()
-        self._at = time.monotonic()
+        now = time.monotonic()
+        full = now - self._full_at >= self.full_every_s or self._newest_us is None
+        since = None if full else self._newest_us - self.margin_us  # type: ignore[operator]
+        statuses = await loop_statuses(store, diagnosed_since_us=since)
+        by_id = {} if full else dict(self._by_id)
+        for i, st in enumerate(statuses):
+            if i % 500 == 499:
+                await asyncio.sleep(0)  # a whole rebuild lets the requests waiting go first
+            row = loop_json(st)
+            by_id[st.id] = (row, json.dumps(row, separators=(",", ":")).encode())
+            if st.last_diagnosis_us is not None:
+                self._newest_us = max(self._newest_us or 0, st.last_diagnosis_us)
+        if full:
+            self._full_at = now
+            self._newest_us = self._newest_us or 0
+        if full or statuses:
+            ordered = [by_id[k] for k in sorted(by_id)]
+            self._by_id = by_id
+            self._rows = [row for row, _ in ordered]
+            self._body = b"[" + b",".join(frag for _, frag in ordered) + b"]"
+        self._at = now
 
     async def get(self, store: Store) -> tuple[list[dict[str, Any]], bytes]:
         """(rows, their JSON array), refreshed from the store when older than ``ttl_s``."""

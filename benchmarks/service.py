@@ -210,8 +210,10 @@ async def fake_verdicts(cfg: Config) -> None:
     for k, row in enumerate(rows.values()):
         cause = mix[k % len(mix)]
         sticky = cause == "stiction"
+        # diagnosed over the last 10 minutes, as a running service spreads its loops' runs
+        at = now - (k * 600_000_000) // len(rows)
         await record_verdict(
-            store, verdict_of(row, now, cause, 3.0 if sticky else None, 1.0 if sticky else None)
+            store, verdict_of(row, at, cause, 3.0 if sticky else None, 1.0 if sticky else None)
         )
     await store.close()
 

@@ -204,10 +204,14 @@ METHOD_RANK = ("measured", "hammerstein", "events", "ellipse")
 """Stiction estimate methods from the most to the least direct measure of S."""
 
 
-async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatus]:
-    """The loop-health table (one loop with ``name``), with each valve's latest reliable S and
-    J of the most direct method it has (``METHOD_RANK``): a valve quantified by identification
-    now and then keeps that S between identifications rather than flipping to another method's.
+async def loop_statuses(
+    store: Store, name: str | None = None, diagnosed_since_us: int | None = None
+) -> list[LoopStatus]:
+    """The loop-health table (one loop with ``name``; the loops diagnosed at or after
+    ``diagnosed_since_us``, for a table kept up to date by increments), with each valve's
+    latest reliable S and J of the most direct method it has (``METHOD_RANK``): a valve
+    quantified by identification now and then keeps that S between identifications rather than
+    flipping to another method's.
     """
     q = select(loops).order_by(loops.c.name)
     latest = (
@@ -215,11 +219,14 @@ async def loop_statuses(store: Store, name: str | None = None) -> list[LoopStatu
         .where(stiction_estimates.c.reliable.is_(True))
         .group_by(stiction_estimates.c.loop_id, stiction_estimates.c.method)
     )
+    subset = None
     if name is not None:
-        q = q.where(loops.c.name == name)
-        latest = latest.where(
-            stiction_estimates.c.loop_id.in_(select(loops.c.id).where(loops.c.name == name))
-        )
+        subset = loops.c.name == name
+    elif diagnosed_since_us is not None:
+        subset = loops.c.last_diagnosis_us >= diagnosed_since_us
+    if subset is not None:
+        q = q.where(subset)
+        latest = latest.where(stiction_estimates.c.loop_id.in_(select(loops.c.id).where(subset)))
     est_q = select(
         stiction_estimates.c.loop_id,
         stiction_estimates.c.S,
