@@ -37,8 +37,10 @@ import httpx
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from helpers import free_port
 from pgcluster import PgCluster, available
+from proctree import cpu_s, rss_kb
 from simhelpers import scaled_scenario
 
 from plantcheck.simulator.export import map_toml
@@ -46,7 +48,6 @@ from plantcheck.simulator.scenario import LoopSpec, Scenario
 from plantcheck.storage.database import upgrade
 
 CLI = [sys.executable, "-m", "plantcheck.service.cli"]
-TICK = os.sysconf("SC_CLK_TCK")
 
 
 def _server_scenario(k: int, n: int) -> Scenario:
@@ -85,39 +86,6 @@ def _config(folder: Path, url: str, api_port: int, scenarios: list[Scenario], co
     path = folder / "site.toml"
     path.write_text("\n".join(parts), encoding="utf-8")
     return path
-
-
-def _rss_mb(pid: int) -> float:
-    """RSS of a process and its children (MB)."""
-    total = 0
-    pids = [pid]
-    while pids:
-        p = pids.pop()
-        try:
-            status = Path(f"/proc/{p}/status").read_text()
-            total += int(
-                next(ln.split()[1] for ln in status.splitlines() if ln.startswith("VmRSS"))
-            )
-            children = Path(f"/proc/{p}/task/{p}/children").read_text().split()
-        except (OSError, StopIteration):
-            continue
-        pids += [int(c) for c in children]
-    return total / 1024
-
-
-def _cpu_s(pid: int) -> float:
-    """User + system CPU seconds of a process and its (waited-for and live) children."""
-    total = 0.0
-    pids = [pid]
-    while pids:
-        p = pids.pop()
-        try:
-            f = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
-            total += (int(f[11]) + int(f[12]) + int(f[13]) + int(f[14])) / TICK
-            pids += [int(c) for c in Path(f"/proc/{p}/task/{p}/children").read_text().split()]
-        except OSError:
-            continue
-    return total
 
 
 async def _measure(url: str, api: str, tag_ids: list[int], n_loops: int, minutes: float,
@@ -241,8 +209,8 @@ def main() -> None:
             except httpx.TransportError:
                 time.sleep(0.5)
         tag_ids = _tag_ids(url)
-        cpu0 = {n: _cpu_s(p.pid) for n, p in procs.items()} | {
-            f"simulator-{k}": _cpu_s(s.pid or 0) for k, s in enumerate(servers)
+        cpu0 = {n: cpu_s(p.pid) for n, p in procs.items()} | {
+            f"simulator-{k}": cpu_s(s.pid or 0) for k, s in enumerate(servers)
         }
         t0 = time.monotonic()
         res = asyncio.run(_measure(url, api, tag_ids, args.loops, args.minutes, args.warmup))
@@ -262,8 +230,8 @@ def main() -> None:
               f"p99 {res['api_p99_ms']:.0f} ms ({args.loops} loops)")  # fmt: skip
         print("process           cores   RSS MB")
         for n, pid in pids.items():
-            cores = (_cpu_s(pid) - cpu0.get(n, 0.0)) / wall
-            print(f"  {n:15s} {cores:6.2f} {_rss_mb(pid):8.0f}")
+            cores = (cpu_s(pid) - cpu0.get(n, 0.0)) / wall
+            print(f"  {n:15s} {cores:6.2f} {rss_kb(pid) / 1024:8.0f}")
         print(f"logs in {folder}")
     finally:
         for p in procs.values():

@@ -30,6 +30,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from proctree import rss_kb
+
 from plantcheck.simulator.faults import send_admin
 from plantcheck.storage.accounting import SampleAccount, account_samples
 
@@ -45,22 +48,6 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
-
-
-def _rss_kb(pid: int) -> int:
-    """Resident memory of ``pid`` and every process below it, kB (Linux /proc)."""
-    total = 0
-    todo = [pid]
-    while todo:
-        p = todo.pop()
-        try:
-            status = Path(f"/proc/{p}/status").read_text()
-            total += int(status.split("VmRSS:")[1].split()[0]) if "VmRSS:" in status else 0
-            for task in Path(f"/proc/{p}/task").iterdir():
-                todo += [int(k) for k in (task / "children").read_text().split()]
-        except (FileNotFoundError, ProcessLookupError, IndexError):
-            continue
-    return total
 
 
 @dataclass
@@ -175,7 +162,7 @@ class Drill:
             asyncio.run(send_admin("127.0.0.1", self.admin, command[kind]))
 
     def memory_kb(self) -> int:
-        return _rss_kb(self.service.pid) if self.service is not None else 0
+        return rss_kb(self.service.pid) if self.service is not None else 0
 
     def account(self, protocol: str) -> SampleAccount:
         """The PV history of the loop collected over ``protocol``."""
