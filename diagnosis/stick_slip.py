@@ -13,6 +13,11 @@ integrating (level) PV keeps a constant slope. One event is
   moved, so the PV moved while OP went the other way: no linear loop does that (a healthy
   loop's PV follows OP's ramp with its own lag, during the ramp).
 
+The breakaway is read at OP's turning points, and also at the PV's fastest moves toward the
+set point that no turn explains (``_jump_phases``): after a set-point step the valve often
+breaks loose while the integral action still ramps OP, and OP turns only once the PV has
+overshot, too late for the turn to mark the slip.
+
 Real sticky valves show one to three such events in a two-hour window, often around set-point
 steps (refinery records of ``../shared/data/refinery-stiction-dev``). Evidence accumulates over
 events: their number, the consistency of the OP travel at breakaway (the stickband, Kano et
@@ -98,11 +103,18 @@ class StickSlipParams:
     oscillating_strong_events: int = 2
     """In an oscillating window the events vote ``stiction`` beside the other tests only with
     this many confirmed by the model (the chain's rule; see ``chain._events_vote``)."""
+    jump_horizon: int = 8
+    """PV moves are read over this many samples to find breakaways that no turn of OP marks
+    (a slip while the integral action still ramps OP, typically after a set-point step)."""
+    jump_candidates: bool = True
+    """Also try the PV's fastest moves toward the set point as breakaways (``_jump_phases``)."""
     max_candidates: int = 32
     """Turning points read in full, the largest slips first (a limit cycle has hundreds)."""
     max_model_candidates: int = 6
     """At most this many turning points (the largest slips first) get the two-model test,
     and none once an event is confirmed: a day-long window of a limit cycle has thousands."""
+    max_jump_model_candidates: int = 3
+    """Of those, at most this many for breakaways found from the PV's jumps alone."""
     max_events: int = 12
     """Events listed at most (the largest); the verdict needs a few."""
 
@@ -218,22 +230,26 @@ def _detrended(x: FloatArray) -> FloatArray:
     n = x.shape[-1]
     t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
     tt = float(t @ t) or 1.0
-    centred = x - x.mean(axis=-1, keepdims=True)
-    return np.asarray(centred - np.multiply.outer(centred @ t / tt, t), dtype=np.float64)
+    centred = x - (x.sum(axis=-1) / n)[..., None]
+    return np.asarray(centred - ((centred @ t) / tt)[..., None] * t, dtype=np.float64)
 
 
-def _best_fit(y: FloatArray, regressors: FloatArray, sign: float) -> float:
-    """Smallest residual sum of squares of y ≈ c0 + c1·t + c2·r over the candidate
-    regressors r (rows of ``regressors``), with c2·sign >= 0 (else c2 = 0).
+def _best_fits(
+    y: FloatArray, regressors: FloatArray, signs: FloatArray, split: int
+) -> tuple[float, float]:
+    """Smallest residual sums of squares of y ≈ c0 + c1·t + c2·r over the candidate
+    regressors r of two models (rows of ``regressors`` before and from ``split``), with
+    c2·sign >= 0 (else c2 = 0), ``signs`` one per row.
 
     Frisch–Waugh: the straight line is taken out of y and of every regressor first, so that
-    each candidate needs one slope only."""
+    each candidate needs one slope only; every group is fitted in the same few array passes."""
     r0 = _detrended(y)
     proj = _detrended(regressors)
     ss = np.einsum("gn,gn->g", proj, proj)
     c2 = np.where(ss > 0, proj @ r0 / np.where(ss > 0, ss, 1.0), 0.0)
-    gain = np.where(c2 * sign > 0, c2 * c2 * ss, 0.0)
-    return float(r0 @ r0) - float(np.max(gain))
+    gain = np.where(c2 * signs > 0, c2 * c2 * ss, 0.0)
+    total = float(r0 @ r0)
+    return total - float(gain[:split].max()), total - float(gain[split:].max())
 
 
 @dataclass(frozen=True)
@@ -291,7 +307,8 @@ def _slip_evidence(
     if integrating:
         lin = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
         steps = np.cumsum(steps, axis=1)
-    return _best_fit(y, lin, gain_sign), _best_fit(y, steps, toward)
+    signs = np.repeat([float(gain_sign), toward], (len(lin), len(steps)))
+    return _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
 
 
 def _candidate(
@@ -350,6 +367,43 @@ def _stuck_phases(
     keep = np.flatnonzero(ok)
     keep = keep[np.argsort(-size[keep], kind="stable")][: p.max_candidates]
     return [(int(s[i]), int(a[i]), int(b[i]), float(toward[i]), float(travel[i])) for i in keep]
+
+
+def _jump_phases(
+    bounds: IntArray, sig: _Signals, gain_sign: int, p: StickSlipParams
+) -> list[tuple[int, int, int, float, float]]:
+    """Stuck phases that end in a PV jump rather than at a turn of OP.
+
+    After a set-point step the integral action ramps OP until the valve breaks loose; the PV
+    then jumps toward the set point while OP is still ramping, and OP turns only later, when
+    the PV overshoots. The breakaway is then the start of the PV's fastest move toward the
+    set point (over ``jump_horizon`` samples); the stuck phase runs back to OP's previous
+    turning point, and OP must have travelled there in the direction that moves the PV
+    toward the set point. Same tuple as ``_stuck_phases``."""
+    h = max(2, p.jump_horizon)
+    if sig.n <= 4 * h:
+        return []
+    k = np.arange(sig.n - h)
+    lo = np.maximum(k - 2 * sig.w, 0)
+    toward = np.sign(sig.cum_e[k + 1] - sig.cum_e[lo])
+    move = toward * (sig.ys[h:] - sig.ys[:-h])
+    floor = max(p.slip_sigma * sig.sigma_y, p.slip_resolution * sig.res)
+    peaks, _ = find_peaks(move, height=floor, distance=h)
+    out = []
+    largest = peaks[np.argsort(-move[peaks], kind="stable")][: 2 * p.max_model_candidates]
+    for a in largest.tolist():
+        j = int(np.searchsorted(bounds, a - p.min_stuck_samples, side="right")) - 1
+        s = int(bounds[max(j, 0)])
+        length = a - s
+        b = min(a + max(p.min_slip_samples, round(p.slip_window_fraction * length)), sig.n - 1)
+        push = float(sig.ops[a] - sig.ops[s])
+        if (
+            length >= p.min_stuck_samples
+            and abs(push) >= p.op_travel_sigma * sig.sigma_op
+            and np.sign(push) * gain_sign == toward[a]
+        ):
+            out.append((s, a, b, float(toward[a]), abs(push)))
+    return out
 
 
 @dataclass(frozen=True)
@@ -444,28 +498,40 @@ def detect_stick_slip(
     w = max(1, p.smooth_samples)
     # a level's slope, per sample, stands in for the valve position of an integrating loop
     y = np.gradient(moving_average(pv, 2 * w + 1)) if integrating else pv
+    sigma_pv = noise_sigma(pv)
     sig = _Signals.of(
         moving_average(y, w),
         moving_average(op, w),
         sp - pv,
         w,
         (
-            max(noise_sigma(y) / math.sqrt(w), 1e-12),
+            max((noise_sigma(y) if integrating else sigma_pv) / math.sqrt(w), 1e-12),
             max(noise_sigma(op) / math.sqrt(w), 1e-12),
-            noise_sigma(pv),
+            sigma_pv,
             0.0 if integrating else _resolution(pv),
         ),
     )
     turns = _turning_points(sig.ops, p.op_turn_sigma * sig.sigma_op)
     bounds = np.concatenate(([0], turns, [n - 1])).astype(np.int64)
-    phases = _stuck_phases(bounds, sig, p)
-    found = [(c, b) for s, a, b, tw, tr in phases if (c := _candidate(s, a, b, tw, tr, sig, p))]
-    found.sort(key=lambda cb: -abs(cb[0][0].pv_jump))
+    # breakaways at OP's turns, then at the PV's jumps that no turn explains: each source,
+    # largest slips first, has its own share of the two-model tests
+    found = _candidates(_stuck_phases(bounds, sig, p), sig, p)
+    ranked = list(enumerate(found))
+    if p.jump_candidates:
+        seen = [(c[0].breakaway - p.jump_horizon, c[0].end) for c, _ in found]
+        jumps = [
+            cb
+            for cb in _candidates(_jump_phases(bounds, sig, gain_sign, p), sig, p)
+            if not any(lo <= cb[0][0].breakaway <= hi for lo, hi in seen)
+        ]
+        # a jump no turn explains is rarer than a turn: fewer model tests for them
+        spare = p.max_model_candidates - p.max_jump_model_candidates
+        ranked += [(k + spare, cb) for k, cb in enumerate(jumps)]
     events: list[StickSlipEvent] = []
     strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
     noise_var = max(sig.sigma_pv**2, sig.res**2 / 12.0, 1e-300)
     dyn = _Dynamics.of(op)
-    for k, ((ev, ratio, rate, follow, kick), b) in enumerate(found):
+    for k, ((ev, ratio, rate, follow, kick), b) in ranked:
         fast = (
             ratio >= p.stick_slip_ratio
             and rate >= p.slip_rate_ratio
@@ -496,8 +562,28 @@ def detect_stick_slip(
             events.append(replace(ev, strong=strong))
         if len(events) >= p.max_events:
             break
-    events.sort(key=lambda ev: ev.breakaway)
+    events = _distinct(events, p.jump_horizon)
     return _reading(tuple(events), n, p)
+
+
+def _distinct(events: list[StickSlipEvent], margin: int) -> list[StickSlipEvent]:
+    """One event per slip, in time order: a slip found both from OP's turn and from the PV's
+    jump is kept once, the confirmed reading first."""
+    kept: list[StickSlipEvent] = []
+    for ev in sorted(events, key=lambda e: (not e.strong, -abs(e.pv_jump))):
+        if not any(k.breakaway - margin <= ev.breakaway <= k.end + margin for k in kept):
+            kept.append(ev)
+    return sorted(kept, key=lambda e: e.breakaway)
+
+
+def _candidates(
+    phases: list[tuple[int, int, int, float, float]], sig: _Signals, p: StickSlipParams
+) -> list[tuple[tuple[StickSlipEvent, float, float, float, float], int]]:
+    """The phases whose slip clears the checks of ``_candidate``, with their slip end ``b``,
+    largest slips first."""
+    found = [(c, b) for s, a, b, tw, tr in phases if (c := _candidate(s, a, b, tw, tr, sig, p))]
+    found.sort(key=lambda cb: -abs(cb[0][0].pv_jump))
+    return found
 
 
 def _needed(least: int, per_1000: float, n: int) -> int:

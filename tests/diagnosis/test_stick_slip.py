@@ -4,6 +4,7 @@ chain (``stiction.events``, ``stiction.estimate``) and the short-window family's
 from __future__ import annotations
 
 import collections
+import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -66,6 +67,39 @@ def test_unresponsive_valve_is_stiction_with_a_note() -> None:
     res = detect_stick_slip(pv, op, np.full(n, 2.5))
     assert res.test.verdict == "stiction"
     assert res.unresponsive is not None and "does not respond" in res.unresponsive
+
+
+def _slip_while_op_ramps(seed: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A set-point step the valve does not follow: the integral action ramps OP while the
+    flow stays put, the valve breaks loose at sample 260, and OP turns only at 275, once the
+    PV has overshot (the refinery's sticky flow loops after a set-point move)."""
+    n = 720
+    rng = np.random.default_rng(seed)
+    t = np.arange(n)
+    sp = np.where(t < 200, 50.0, 51.0)
+    valve = np.where(t < 260, 0.0, 1.3)
+    pv = 50.0 + valve * (1 - np.exp(-np.clip(t - 260, 0, None) / 2.0)) + rng.normal(0, 0.05, n)
+    op = 40.0 + np.where(t >= 200, 0.3, 0.0) + 0.02 * np.clip(t - 200, 0, 75)
+    op = op - 0.01 * np.clip(t - 275, 0, 60) + rng.normal(0, 0.02, n)
+    return pv, op, sp
+
+
+def test_a_slip_before_op_turns_is_found_from_the_pv_jump() -> None:
+    pv, op, sp = _slip_while_op_ramps()
+    res = detect_stick_slip(pv, op, sp)
+    assert res.test.verdict == "stiction"
+    assert [abs(ev.breakaway - 260) <= 3 and ev.strong for ev in res.events] == [True]
+    # OP's turning points alone miss it: the PV has jumped before OP turns
+    turns_only = replace(StickSlipParams(), jump_candidates=False)
+    assert detect_stick_slip(pv, op, sp, params=turns_only).events == ()
+
+
+def test_one_slip_is_one_event() -> None:
+    """A slip found both from OP's turn and from the PV's jump is listed once."""
+    _, res = _detect(_slow_loop(valve="he", S=5.0, J=4.0))
+    times = [ev.breakaway for ev in res.events]
+    assert len(times) >= 2
+    assert all(b - a > StickSlipParams().jump_horizon for a, b in itertools.pairwise(times))
 
 
 def test_too_short_a_window_is_undecided() -> None:
