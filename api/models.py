@@ -51,13 +51,17 @@ class DiagnosisOut(BaseModel):
 
 
 class SampleOut(BaseModel):
-    """One stored sample (value null when its quality was Bad)."""
+    """One stored sample (value null when its quality was Bad), or with ``resolution=hour``
+    one hour of a signal's Good samples (value = their mean)."""
 
-    time: str = Field(description="Source timestamp, ISO 8601 UTC.")
+    time: str = Field(description="Source timestamp, ISO 8601 UTC (hourly: the hour's start).")
     signal: Literal["sp", "pv", "op", "mv", "mode"]
     value: float | None
     status: int = Field(description="OPC UA status code (0 = Good).")
-    received_at: str
+    received_at: str | None = Field(description="When it was received (null for hourly rows).")
+    count: int | None = Field(None, description="Hourly rows: Good samples in the hour.")
+    min: float | None = Field(None, description="Hourly rows: the lowest Good value.")
+    max: float | None = Field(None, description="Hourly rows: the highest Good value.")
 
 
 class ActionOut(BaseModel):

@@ -38,6 +38,7 @@ from plantcheck.storage.results import (
     diagnosis_history,
     loop_statuses,
 )
+from plantcheck.storage.rollups import read_hours
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
@@ -170,12 +171,36 @@ async def list_samples(
     ] = None,
     limit: Annotated[int, Query(ge=1, le=100_000, description="Most samples returned.")] = 10_000,
     offset: Offset = 0,
+    resolution: Annotated[
+        Literal["raw", "hour"],
+        Query(
+            description="raw: the stored samples; hour: hourly roll-ups (count, mean, min, "
+            "max of the Good values), kept for years after the samples are deleted."
+        ),
+    ] = "raw",
 ) -> list[SampleOut]:
     """Stored samples in [from, to), oldest first; without ``from`` and ``to``, the last hour
-    up to the newest stored sample. A ``Link`` header points to the next page, if any."""
+    up to the newest stored sample (hourly: everything kept). A ``Link`` header points to the
+    next page, if any."""
     row = await get_loop(backend, loop_id)
     store = backend.store
     start, end = times.start_us, times.end_us
+    if resolution == "hour":
+        hours = await read_hours(store, row, start, end, limit + offset + 1, signal)
+        paginate(request, response, None, limit, offset, more=len(hours) > limit + offset)
+        return [
+            SampleOut(
+                time=iso_required(h.hour_us),
+                signal=h.signal,
+                value=h.mean,
+                status=0,
+                received_at=None,
+                count=h.n,
+                min=h.low,
+                max=h.high,
+            )
+            for h in hours[offset : offset + limit]
+        ]
     if start is None and end is None:
         newest = await store.latest_sample_us(row)
         if newest is not None:

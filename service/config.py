@@ -91,6 +91,9 @@ class StorageConfig(_Strict):
     retention_days: float = Field(30.0, gt=0)
     """Samples older than this are deleted every hour, except each tag's newest one (the value
     a constant set point or mode reported once by OPC UA still holds)."""
+    rollup_retention_days: float = Field(3650.0, gt=0)
+    """Hourly roll-ups of every signal (count, mean, lowest, highest: the long trends, read
+    with ``GET /api/v1/loops/{id}/samples?resolution=hour``) are kept this long."""
     buffer_path: str = "plantcheck-buffer.db"
     """Local durable buffer used while the store is unreachable."""
     buffer_max_samples: int = Field(5_000_000, ge=1000)

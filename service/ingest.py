@@ -167,14 +167,16 @@ class Ingestion:
         store = await Store.open(cfg.storage.url, config_hint=config_hint)
         log.info("store: %s", await store.storage_mode())
         loops = await store.sync_config(own if collector else cfg)
+        tag_ids = [t for lp in own.loop for t in loops[lp.id].tags.values()]
         writer = SampleWriter(
             store,
             Path(cfg.storage.buffer_path),
             buffer_max_samples=cfg.storage.buffer_max_samples,
             commit_interval_s=cfg.storage.commit_interval_s,
             retention_s=cfg.storage.retention_days * 86400.0,
+            rollup_tags=tag_ids,
+            rollup_retention_s=cfg.storage.rollup_retention_days * 86400.0,
         )
-        tag_ids = [t for lp in own.loop for t in loops[lp.id].tags.values()]
         writer.put(await restart_gaps(store, writer, tag_ids))
         writer.start()
         sink: SampleSink = writer.put

@@ -88,6 +88,19 @@ samples = Table(
     sqlite_with_rowid=False,
 )
 
+sample_hours = Table(
+    "sample_hours",
+    metadata,
+    # one row per tag and hour of Good samples: the long trends outlive the samples' retention
+    Column("tag_id", Integer, primary_key=True),
+    Column("hour_us", BigInteger, primary_key=True),
+    Column("n", Integer, nullable=False),
+    Column("mean", Float, nullable=False),
+    Column("low", Float, nullable=False),
+    Column("high", Float, nullable=False),
+    sqlite_with_rowid=False,
+)
+
 diagnoses = Table(
     "diagnoses",
     metadata,

@@ -125,8 +125,9 @@ class Store:
 
     async def storage_mode(self) -> str:
         """Which database and sample layout this store runs on, for the start-up log."""
+        retention = "retention: hourly range deletes per tag; long trends: hourly roll-ups"
         if self.dialect != "postgresql":
-            return "SQLite (WAL); retention: hourly range deletes per tag"
+            return f"SQLite (WAL); {retention}"
         async with self.engine.connect() as conn:
             version = (await conn.execute(text("SHOW server_version"))).scalar_one()
             tsdb = (
@@ -139,7 +140,7 @@ class Store:
             if tsdb
             else "plain tables (TimescaleDB not installed)"
         )
-        return f"PostgreSQL {version}, {layout}; retention: hourly range deletes per tag"
+        return f"PostgreSQL {version}, {layout}; {retention}"
 
     # -- configuration -------------------------------------------------------------------
     async def sync_config(self, cfg: PlantSettings) -> dict[str, LoopRow]:

@@ -5,7 +5,9 @@ about once a second (``commit_interval_s``). When the store fails, the batch goe
 ``DurableBuffer`` and the writer retries with backoff; once the store answers again the buffer
 is written back first, oldest first, idempotently (same tag and timestamp stored once), then
 new samples. A failure is logged once and the recovery once. On SQLite the WAL is checkpointed
-every ``checkpoint_every_s``; samples older than ``retention_s`` are deleted every hour.
+every ``checkpoint_every_s``. Every hour the writer rolls its own tags' complete hours up into
+``sample_hours`` (``rollups.roll_up``: the long trends), then deletes samples older than
+``retention_s`` and roll-ups older than ``rollup_retention_s``.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 
 from plantcheck.core.samples import Sample
 from plantcheck.storage.buffer import DurableBuffer
+from plantcheck.storage.rollups import purge_hours, roll_up
 from plantcheck.storage.store import Store
 
 log = logging.getLogger("plantcheck.storage")
@@ -52,6 +55,8 @@ class SampleWriter:
         checkpoint_every_s: float = 300.0,
         retention_s: float | None = None,
         purge_every_s: float = 3600.0,
+        rollup_tags: Sequence[int] = (),
+        rollup_retention_s: float | None = None,
     ) -> None:
         self.store = store
         self.buffer = DurableBuffer(buffer_path, buffer_max_samples)
@@ -60,6 +65,9 @@ class SampleWriter:
         self.checkpoint_every_s = checkpoint_every_s
         self.retention_s = retention_s
         self.purge_every_s = purge_every_s
+        self.rollup_tags = tuple(rollup_tags)
+        """The tags this writer rolls up: its own (each collector and the service theirs)."""
+        self.rollup_retention_s = rollup_retention_s
         self.stats = WriterStats()
         self._pending: list[Sample] = []
         self._task: asyncio.Task[None] | None = None
@@ -141,6 +149,15 @@ class SampleWriter:
             )
         return n
 
+    async def roll_up_hours(self) -> int:
+        """Roll this writer's tags up by the hour (before the samples are purged), and delete
+        roll-ups older than ``rollup_retention_s``."""
+        now_us = time.time_ns() // 1000
+        n = await roll_up(self.store, now_us, self.rollup_tags) if self.rollup_tags else 0
+        if self.rollup_retention_s is not None:
+            await purge_hours(self.store, now_us - int(self.rollup_retention_s * 1e6))
+        return n
+
     async def _run(self) -> None:
         last_checkpoint = time.monotonic()
         last_purge = 0.0
@@ -153,6 +170,8 @@ class SampleWriter:
                     await self.store.checkpoint()
                 last_checkpoint = time.monotonic()
             if time.monotonic() - last_purge > self.purge_every_s and self.stats.store_up:
+                with contextlib.suppress(Exception):
+                    await self.roll_up_hours()
                 with contextlib.suppress(Exception):
                     await self.purge_old()
                 last_purge = time.monotonic()
