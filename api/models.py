@@ -6,18 +6,20 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
-State = Literal["ok", "warning", "fault", "unknown"]
+from plantcheck.core.vocabulary import ActionCode, Cause, LoopType, State
+
+__all__ = ["State"]  # re-exported for the routes' filters
 
 
 class LoopOut(BaseModel):
     """A row of the loop-health table."""
 
     id: str
-    type: str
+    type: LoopType
     source: str
     description: str = ""
     state: State
-    cause: str | None = Field(description="Cause of the current verdict (contracts §2).")
+    cause: Cause | None = Field(description="Cause of the current verdict (contracts §2).")
     since: str | None = Field(description="When the current verdict began (ISO 8601 UTC).")
     last_diagnosis_at: str | None
     S: float | None = Field(description="Latest stiction estimate, % of valve travel.")
@@ -45,7 +47,7 @@ class DiagnosisOut(BaseModel):
     created_at: str
     window_start: str
     window_end: str
-    cause: str
+    cause: Cause
     state: State
     diagnosis: dict[str, Any] = Field(description="The object of contracts §2.")
 
@@ -68,8 +70,8 @@ class ActionOut(BaseModel):
     """A row of the suggested-action table."""
 
     loop: str
-    cause: str
-    code: str
+    cause: Cause
+    code: ActionCode
     action: str = Field(description="What to do, for the operator.")
     priority: int = Field(description="1 fault, 2 warning, 3 other.")
     since: str
@@ -155,4 +157,4 @@ class Health(BaseModel):
 
 class DiagnoseNow(BaseModel):
     loop: str
-    cause: str
+    cause: Cause

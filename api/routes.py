@@ -32,7 +32,7 @@ from plantcheck.api.models import (
     State,
 )
 from plantcheck.core.names import NAME_PATTERN
-from plantcheck.diagnosis.result import CAUSES
+from plantcheck.core.vocabulary import Cause, LoopType
 from plantcheck.storage.results import (
     active_actions,
     diagnosis_history,
@@ -49,7 +49,6 @@ Offset = Annotated[int, Query(ge=0, le=10_000_000, description="Items to skip.")
 Responses = dict[int | str, dict[str, Any]]
 NOT_FOUND: Responses = {404: {"description": "Unknown loop"}}
 UNAUTHORIZED: Responses = {401: {"description": "Missing or wrong X-API-Key header"}}
-Cause = Literal[CAUSES]  # type: ignore[valid-type]
 
 
 def paginate(
@@ -79,7 +78,7 @@ async def list_loops(
     state: Annotated[State | None, Query(description="Only loops in this state.")] = None,
     cause: Annotated[Cause | None, Query(description="Only loops with this cause.")] = None,
     loop_type: Annotated[
-        Literal["flow", "pressure", "level", "temperature", "composition", "other"] | None,
+        LoopType | None,
         Query(alias="type", description="Only loops of this type."),
     ] = None,
     limit: Annotated[int, Query(ge=1, le=100_000, description="Most loops returned.")] = 10_000,

@@ -6,88 +6,74 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from plantcheck.core.vocabulary import CAUSES, STATES, ActionCode, Cause, State
+
+__all__ = ["CAUSES", "STATES", "Diagnosis", "action_for", "json_safe", "priority_of", "state_of"]
+
 SCHEMA = "plantcheck.diagnosis/1"
 
-CAUSES = (
-    "ok",
-    "stiction",
-    "aggressive_tuning",
-    "sluggish_tuning",
-    "external_disturbance",
-    "saturation",
-    "oscillation_unknown_cause",
-    "data_quality",
-    "manual_mode",
-    "insufficient_data",
-    "deadband_backlash",
-    "positioner_fault",
-    "positioner_tuning",
-    "air_leakage",
-    "actuator_undersized",
-)
-
-_ACTIONS: dict[str, tuple[str, str]] = {
-    "ok": ("none", "No action: the loop performs well."),
-    "stiction": (
-        "valve_maintenance",
+_ACTIONS: dict[Cause, tuple[ActionCode, str]] = {
+    Cause.ok: (ActionCode.none, "No action: the loop performs well."),
+    Cause.stiction: (
+        ActionCode.valve_maintenance,
         "Schedule valve maintenance: the control valve sticks (it moves in jumps, or not at all).",
     ),
-    "aggressive_tuning": (
-        "retune_less_aggressive",
+    Cause.aggressive_tuning: (
+        ActionCode.retune_less_aggressive,
         "Retune the controller less aggressively (lower gain or longer integral time): "
         "the loop oscillates at its own frequency.",
     ),
-    "sluggish_tuning": (
-        "retune_more_aggressive",
+    Cause.sluggish_tuning: (
+        ActionCode.retune_more_aggressive,
         "Retune the controller more aggressively (higher gain or shorter integral time): "
         "the loop recovers slowly from disturbances.",
     ),
-    "external_disturbance": (
-        "check_upstream",
+    Cause.external_disturbance: (
+        ActionCode.check_upstream,
         "Look upstream: an oscillating disturbance enters the loop from outside; "
         "find its source (other loops, feed, utilities).",
     ),
-    "saturation": (
-        "check_valve_sizing",
+    Cause.saturation: (
+        ActionCode.check_valve_sizing,
         "Check valve sizing and operating point: the controller output sits at a limit.",
     ),
-    "oscillation_unknown_cause": (
-        "investigate_oscillation",
+    Cause.oscillation_unknown_cause: (
+        ActionCode.investigate_oscillation,
         "Investigate the oscillation: the cause could not be determined from SP/PV/OP; "
         "a valve travel test or a short manual-mode test tells valve from disturbance.",
     ),
-    "data_quality": (
-        "check_data",
+    Cause.data_quality: (
+        ActionCode.check_data,
         "Check the measurement and historian settings (gaps, frozen or quantised values).",
     ),
-    "manual_mode": (
-        "check_mode",
+    Cause.manual_mode: (
+        ActionCode.check_mode,
         "Put the loop back in automatic, or find out why operators run it in manual.",
     ),
-    "deadband_backlash": (
-        "check_linkage",
+    Cause.deadband_backlash: (
+        ActionCode.check_linkage,
         "Check the valve linkage and actuator for backlash: the stem lags OP reversals by a "
         "deadband without slip.",
     ),
-    "positioner_fault": (
-        "recalibrate_positioner",
+    Cause.positioner_fault: (
+        ActionCode.recalibrate_positioner,
         "Recalibrate the positioner (zero and span): the stem position is offset from OP.",
     ),
-    "positioner_tuning": (
-        "retune_positioner",
+    Cause.positioner_tuning: (
+        ActionCode.retune_positioner,
         "Retune the positioner: the stem hunts or overshoots on its own.",
     ),
-    "air_leakage": (
-        "check_air_supply",
+    Cause.air_leakage: (
+        ActionCode.check_air_supply,
         "Check the actuator for air leakage (diaphragm, tubing, supply): the stem drifts toward "
         "its fail position.",
     ),
-    "actuator_undersized": (
-        "check_actuator_sizing",
+    Cause.actuator_undersized: (
+        ActionCode.check_actuator_sizing,
         "Check actuator size and air supply: the stem cannot move as fast as the controller asks.",
     ),
-    "insufficient_data": (
-        "collect_more_data",
+    Cause.insufficient_data: (
+        ActionCode.collect_more_data,
         "Collect a longer, steady window (constant set point, automatic mode).",
     ),
 }
@@ -104,14 +90,18 @@ def action_for(
 ) -> dict[str, str]:
     """The suggested action (code and operator text) for ``cause``; a stiction size (% of
     travel) names its method unless it is the Hammerstein identification or measured."""
-    code, text = _ACTIONS.get(cause, ("investigate", "Investigate the loop."))
+    code, text = (
+        _ACTIONS[Cause(cause)]
+        if cause in CAUSES
+        else (ActionCode.investigate, "Investigate the loop.")
+    )
     if cause == "deadband_backlash" and S is not None:
         text = f"{text[:-1]} (deadband {S:.1f} % of travel)."
     if cause == "stiction" and S is not None:
         jtxt = f" (J = {J:.1f} %)" if J is not None else ""
         how = _METHOD_WORDS.get(method or "", "")
         text = f"Schedule valve maintenance: estimated stiction S = {S:.1f} %{jtxt}{how}."
-    return {"code": code, "text": text}
+    return {"code": code.value, "text": text}
 
 
 def json_safe(value: Any) -> Any:
@@ -170,38 +160,35 @@ class Diagnosis:
         }
 
 
-STATES = ("ok", "warning", "fault", "unknown")
-"""Loop states of the health table (contracts §5)."""
-
 _FAULTS = frozenset(
     {
-        "stiction",
-        "aggressive_tuning",
-        "saturation",
-        "deadband_backlash",
-        "positioner_fault",
-        "positioner_tuning",
-        "air_leakage",
-        "actuator_undersized",
+        Cause.stiction,
+        Cause.aggressive_tuning,
+        Cause.saturation,
+        Cause.deadband_backlash,
+        Cause.positioner_fault,
+        Cause.positioner_tuning,
+        Cause.air_leakage,
+        Cause.actuator_undersized,
     }
 )
-_UNKNOWN = frozenset({"data_quality", "insufficient_data"})
+_UNKNOWN = frozenset({Cause.data_quality, Cause.insufficient_data})
 
 
-def state_of(cause: str) -> str:
+def state_of(cause: str) -> State:
     """Health state of a loop with this cause: ``ok``; ``fault`` when equipment or tuning is
     wrong and the loop performs badly (sticky or faulty valve, oscillating tuning, saturated
     valve); ``unknown`` when the window could not be judged; ``warning`` otherwise (sluggish
     tuning, an upstream disturbance, an oscillation of unknown cause, manual mode)."""
-    if cause == "ok":
-        return "ok"
+    if cause == Cause.ok:
+        return State.ok
     if cause in _FAULTS:
-        return "fault"
+        return State.fault
     if cause in _UNKNOWN:
-        return "unknown"
-    return "warning"
+        return State.unknown
+    return State.warning
 
 
 def priority_of(cause: str) -> int:
     """Priority of the suggested action: 1 (fault), 2 (warning), 3 (unknown or ok)."""
-    return {"fault": 1, "warning": 2}.get(state_of(cause), 3)
+    return {State.fault: 1, State.warning: 2}.get(state_of(cause), 3)

@@ -15,10 +15,12 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Literal
 
+from plantcheck.core.vocabulary import LOOP_TYPES, LoopType
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 
-LOOP_TYPES = ("flow", "pressure", "level", "temperature", "composition", "other")
-INTEGRATING_TYPES = frozenset({"level"})
+__all__ = ["LOOP_TYPES"]  # re-exported: the chain checks its loop_type against them
+
+INTEGRATING_TYPES = frozenset({LoopType.level.value})
 
 SHAPE_TESTS = frozenset({"relay", "curve_fit", "area_ratio", "histogram"})
 """Tests that read the waveform itself; they break ties in the vote."""

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from plantcheck import __version__
-from plantcheck.service.cli_common import LoopType, fail
+from plantcheck.core.vocabulary import LoopType
+from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_run import demo_cmd, run_cmd, worker_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd

@@ -3,22 +3,10 @@
 from __future__ import annotations
 
 import re
-from enum import StrEnum
 
 import typer
 
 _UNITS = {"s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0, "d": 86400.0}
-
-
-class LoopType(StrEnum):
-    """Loop types of contracts §2."""
-
-    flow = "flow"
-    pressure = "pressure"
-    level = "level"
-    temperature = "temperature"
-    composition = "composition"
-    other = "other"
 
 
 def fail(message: str, code: int = 2) -> typer.Exit:

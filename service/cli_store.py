@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from plantcheck.core.names import check_loop_id
-from plantcheck.service.cli_common import LoopType, fail, parse_duration
+from plantcheck.core.vocabulary import LoopType
+from plantcheck.service.cli_common import fail, parse_duration
 from plantcheck.service.logs import configure_for_command
 from plantcheck.storage.errors import StorageError
 

@@ -27,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, SecretStr, field_validator, m
 
 from plantcheck.core.names import NAME_PATTERN, NAME_RULE
 from plantcheck.core.toml_config import ConfigError, dotted, load_toml, locate
+from plantcheck.core.vocabulary import LoopType
 
 DEFAULT_CONFIG = Path("plantcheck.toml")
 SIGNAL_KEYS = ("sp", "pv", "op", "mv", "mode")
@@ -258,7 +259,7 @@ class LoopConfig(_Strict):
     """A control loop and where its signals come from."""
 
     id: str = Field(pattern=NAME_PATTERN)
-    type: Literal["flow", "pressure", "level", "temperature", "composition", "other"] = "other"
+    type: LoopType = LoopType.other
     source: str
     sp: str = ""
     pv: str

@@ -31,7 +31,7 @@ from collections.abc import Sequence
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 
 from plantcheck.core.source_health import SourceHealth
-from plantcheck.diagnosis.result import STATES
+from plantcheck.core.vocabulary import STATES
 
 
 class ServiceMetrics:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from plantcheck.diagnosis.result import CAUSES
+from plantcheck.core.vocabulary import CAUSES
 from plantcheck.simulator.cases import (
     PROCESSES,
     Case,

@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from plantcheck.core.names import NAME_PATTERN
 from plantcheck.core.toml_config import load_toml, parse_toml
+from plantcheck.core.vocabulary import LoopType
 from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.loop import LoopConfig, PIController, Process
 
@@ -159,7 +160,7 @@ class LoopSpec(_Strict):
     """One simulated loop."""
 
     id: str = Field(pattern=NAME_PATTERN)
-    type: Literal["flow", "pressure", "level", "temperature", "composition", "other"] = "other"
+    type: LoopType = LoopType.other
     description: str = ""
     unit: str = "%"
     range: tuple[float, float] = (0.0, 100.0)
