@@ -1,10 +1,12 @@
 """Control-loop diagnosis: pure numpy/scipy functions, no I/O (methods.md).
 
-The public entry points are :func:`diagnose` (the PCU standard chain) and
+The public entry points are :func:`diagnose_loop` (the standard or the advanced chain, by the
+stem position's coverage), :func:`diagnose` (the PCU standard chain) and
 :func:`detect_oscillation` (oscillation test on any one signal).
 """
 
 from plantcheck.diagnosis.chain import ChainParams, diagnose, diagnose_advanced
+from plantcheck.diagnosis.chain_choice import diagnose_loop
 from plantcheck.diagnosis.oscillation import (
     OscillationParams,
     OscillationResult,
@@ -23,4 +25,5 @@ __all__ = [
     "detect_oscillation",
     "diagnose",
     "diagnose_advanced",
+    "diagnose_loop",
 ]

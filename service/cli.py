@@ -176,7 +176,7 @@ def diagnose_cmd(
     ] = DEFAULT_MAX_SAMPLES,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
-    from plantcheck.diagnosis import diagnose, diagnose_advanced
+    from plantcheck.diagnosis import diagnose_loop
 
     rec = _load(file, sample_time, ("pv", "op"), max_samples)
     sl, extra = _tail(rec, max_samples)
@@ -184,13 +184,8 @@ def diagnose_cmd(
     op = rec.signals["op"][sl]
     sp = rec.signals["sp"][sl] if "sp" in rec.signals else None
     auto = rec.auto[sl] if rec.auto is not None else None
-    if "mv" in rec.signals:
-        mv = rec.signals["mv"][sl]
-        d = diagnose_advanced(
-            pv, op, mv, rec.sample_time_s, sp=sp, auto=auto, loop_type=loop_type.value
-        )
-    else:
-        d = diagnose(pv, op, rec.sample_time_s, sp=sp, auto=auto, loop_type=loop_type.value)
+    mv = rec.signals["mv"][sl] if "mv" in rec.signals else None
+    d = diagnose_loop(pv, op, rec.sample_time_s, sp=sp, mv=mv, auto=auto, loop_type=loop_type.value)
     d.notes = rec.notes + extra + d.notes
     _emit(d.to_dict() if as_json else _summary(d), as_json)
 

@@ -11,12 +11,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis import diagnose, diagnose_advanced
+from plantcheck.diagnosis import diagnose_loop
 
 FloatArray = NDArray[np.float64]
-
-MIN_MV_COVERAGE = 0.5
-"""Fewest finite MV samples (fraction of the window) for the advanced chain to run."""
 
 
 def automatic(mode: FloatArray | None) -> NDArray[np.bool_] | None:
@@ -39,8 +36,8 @@ def diagnose_window(
     """The diagnosis (contracts §2 JSON object) of one aligned window.
 
     ``values`` holds ``pv``, ``op`` and optionally ``sp``, ``mv``, ``mode`` on one grid of
-    ``sample_time_s`` seconds (missing samples NaN). The advanced chain runs when MV was stored
-    for at least half the window (Bacci di Capaci 2016, §2.7), the standard chain otherwise.
+    ``sample_time_s`` seconds (missing samples NaN). The chain is chosen by ``diagnose_loop``
+    (the advanced one when MV was stored for at least half the window).
     ``quantify`` off skips the Hammerstein S/J estimate (methods §6.1), the costly part.
     """
     pv, op = values["pv"], values["op"]
@@ -48,14 +45,15 @@ def diagnose_window(
     if sp is not None and not np.isfinite(sp).any():
         sp = None
     auto = automatic(values.get("mode"))
-    mv = values.get("mv")
-    if mv is not None and mv.size and np.isfinite(mv).mean() >= MIN_MV_COVERAGE:
-        d = diagnose_advanced(
-            pv, op, mv, sample_time_s, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify
-        )
-    else:
-        d = diagnose(
-            pv, op, sample_time_s, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify
-        )
+    d = diagnose_loop(
+        pv,
+        op,
+        sample_time_s,
+        sp=sp,
+        mv=values.get("mv"),
+        auto=auto,
+        loop_type=loop_type,
+        quantify=quantify,
+    )
     d.notes = (notes or []) + d.notes
     return d.to_dict()
