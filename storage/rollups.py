@@ -22,11 +22,10 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from sqlalchemy import and_, delete, func, select, text
-from sqlalchemy.sql.elements import ColumnElement
 
 from plantcheck.core.status_codes import BAD
 from plantcheck.storage.schema import sample_hours, samples, tags
-from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.store import LoopRow, Store, signal_range
 
 HOUR_US = 3_600_000_000
 """One hour in µs: roll-ups start on whole hours since 1970 (UTC)."""
@@ -132,14 +131,11 @@ async def read_hours(
     signals: Sequence[str] | None = None,
 ) -> list[HourRow]:
     """The loop's hourly roll-ups starting in [start, end), oldest first."""
-    tag_sig = {tid: sig for sig, tid in loop.tags.items() if not signals or sig in signals}
+    tag_sig, cond = signal_range(
+        loop, signals, sample_hours.c.tag_id, sample_hours.c.hour_us, start_us, end_us
+    )
     if not tag_sig:
         return []
-    cond: list[ColumnElement[bool]] = [sample_hours.c.tag_id.in_(list(tag_sig))]
-    if start_us is not None:
-        cond.append(sample_hours.c.hour_us >= start_us)
-    if end_us is not None:
-        cond.append(sample_hours.c.hour_us < end_us)
     q = (
         select(sample_hours)
         .where(and_(*cond))

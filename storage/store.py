@@ -81,6 +81,25 @@ class LoopRow:
     tags: dict[str, int]
 
 
+def signal_range(
+    loop: LoopRow,
+    signals: Sequence[str] | None,
+    tag_col: ColumnElement[int],
+    time_col: ColumnElement[int],
+    start_us: int | None,
+    end_us: int | None,
+) -> tuple[dict[int, str], list[ColumnElement[bool]]]:
+    """The loop's tags of ``signals`` (all when None), by tag id, and the conditions that
+    select them over [start, end) of ``time_col`` (either end open when None)."""
+    tag_sig = {tid: sig for sig, tid in loop.tags.items() if not signals or sig in signals}
+    cond: list[ColumnElement[bool]] = [tag_col.in_(list(tag_sig))]
+    if start_us is not None:
+        cond.append(time_col >= start_us)
+    if end_us is not None:
+        cond.append(time_col < end_us)
+    return tag_sig, cond
+
+
 class Store:
     """Async access to one database (``Store.open(url)``; ``close()`` when done)."""
 
@@ -287,14 +306,11 @@ class Store:
         signals: Sequence[str] | None = None,
     ) -> list[tuple[str, int, int, float | None, int]]:
         """(signal, ts_us, recv_us, value, status) of a loop in [start, end), oldest first."""
-        tag_sig = {tid: sig for sig, tid in loop.tags.items() if not signals or sig in signals}
+        tag_sig, cond = signal_range(
+            loop, signals, samples.c.tag_id, samples.c.ts_us, start_us, end_us
+        )
         if not tag_sig:
             return []
-        cond: list[ColumnElement[bool]] = [samples.c.tag_id.in_(list(tag_sig))]
-        if start_us is not None:
-            cond.append(samples.c.ts_us >= start_us)
-        if end_us is not None:
-            cond.append(samples.c.ts_us < end_us)
         q = select(samples).where(and_(*cond)).order_by(samples.c.ts_us, samples.c.tag_id)
         if limit is not None:
             q = q.limit(limit)
