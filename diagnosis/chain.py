@@ -475,6 +475,7 @@ def _quantify_into(
         "S_best": q.S_best,
         "J_best": q.J_best,
         "reasons": q.reasons,
+        "reason_codes": q.reason_codes,
         "external_period_s": q.external_period_s,
         "period_s": q.period_s,
     }

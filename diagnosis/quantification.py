@@ -66,6 +66,7 @@ except ImportError:  # pragma: no cover - a SciPy that moved its private kernel
     _sosfilt = None
 
 from plantcheck.diagnosis.oscillation import faster_oscillation
+from plantcheck.diagnosis.quantification_rules import Evidence, refusals
 from plantcheck.diagnosis.signal_tools import FloatArray, moving_average
 from plantcheck.diagnosis.valve_models import he_grid, kano_grid
 
@@ -199,6 +200,8 @@ class QuantificationResult:
     """Oscillation period (s) the identification used: the given one, or a faster oscillation
     found beneath it."""
     surface: dict[str, FloatArray] = field(default_factory=dict, repr=False)
+    reason_codes: list[str] = field(default_factory=list)
+    """The failed rules' codes (``quantification_rules``), one per reason."""
 
 
 class _ArxMoments:
@@ -768,43 +771,8 @@ def quantify_stiction(
     )
     score_lin = float(_scores(vref, prob, 2)[0][0])
     ratio = main.best / score_lin if math.isfinite(score_lin) and score_lin > 0 else 0.0
-    reasons: list[str] = []
-    cycles = u.size / period_samples
-    if cycles < p.min_cycles:
-        reasons.append(
-            f"only {cycles:.1f} oscillation periods in the window: at least {p.min_cycles:g} "
-            "are needed (a longer window)"
-        )
-    if not math.isfinite(main.best):
-        reasons.append("no candidate valve moved enough to identify a model")
-    if main.fit < p.min_fit:
-        reasons.append(f"model fit {main.fit:.0f} % below {p.min_fit:.0f} %")
-    if ratio > p.max_score_ratio:
-        reasons.append(
-            f"stiction model explains little more than a linear valve (error ratio {ratio:.2f})"
-        )
-    if main.s_best >= s_hi / _s_step(s_lo, s_hi, p):  # within one grid step of the top
-        reasons.append("S* on the upper edge of the grid (as large as the OP excursion)")
-    good = main.score <= p.compact_tol * main.best
-    if good.any():
-        extent = float(main.S[good].max() - main.S[good].min())
-        if main.s_best > 0 and extent > p.max_region_extent * main.s_best:
-            reasons.append(f"S not identifiable: low-error region spans {extent:.2f} % of OP")
-    # rule 4c: a stick-slip fit is sharp in S (a valve model a few % off misses or adds
-    # slips), so an S far from S* that fits nearly as well means the data do not fix S: on slow
-    # loops a smaller S with a longer delay often fits as well as the true one
-    far = np.abs(main.S - main.s_best) > p.rival_distance * main.s_best
-    if far.any() and math.isfinite(main.best):
-        k_far = int(np.argmin(np.where(far, main.score, np.inf)))
-        if main.score[k_far] <= p.rival_tol * main.best:
-            reasons.append(
-                f"S not identifiable: S = {main.S[k_far]:.2f} % fits within "
-                f"{100 * (main.score[k_far] / main.best - 1):.0f} % as well as S* = "
-                f"{main.s_best:.2f} %"
-            )
-    # rule 4b: S and the delay can trade off (a smaller S slips earlier, a longer delay shifts
-    # the response back). Along S with J/S fixed and every delay free, no clearly different S
-    # may fit as well as S*.
+    # rule 4b's line: S along the estimate's J/S with every delay free (see its rule)
+    s_line = line_score = np.zeros(0)
     if main.s_best > 0 and math.isfinite(main.best):
         ratio_j = main.j_best / main.s_best
         n_ph = p.he_phases if main.model == "he" and ratio_j > 0 else 1
@@ -819,67 +787,39 @@ def quantify_stiction(
             2,
             range(1, max_delay + 1),
         )
-        rivals = s_line[line_score <= p.compact_tol * main.best]
-        if rivals.size:
-            reasons.append(
-                f"S not identifiable: S = {rivals.min():.2f}…{rivals.max():.2f} % fits as well "
-                "with another delay"
-            )
-    # rule 5: when the other valve model (Kano vs He) fits about as well, it must agree on S;
-    # when the data clearly prefer one structure, the other one's S does not matter
-    close = other.best <= p.structure_tie * main.best
-    disagree = main.s_best > 0 and (
-        abs(other.s_best - main.s_best) / main.s_best > p.max_structure_disagreement
+    ev = Evidence(
+        params=p,
+        integrating=integrating,
+        cycles=u.size / period_samples,
+        period_samples=period_samples,
+        n_samples=u.size,
+        model=main.model,
+        best=main.best,
+        fit=main.fit,
+        s_best=main.s_best,
+        j_best=main.j_best,
+        S=main.S,
+        score=main.score,
+        other_model=other.model,
+        other_best=other.best,
+        other_s_best=other.s_best,
+        score_ratio=ratio,
+        grid_top=s_hi / _s_step(s_lo, s_hi, p),
+        tradeoff_S=s_line,
+        tradeoff_score=line_score,
+        valve=_valve_positions(u, main.model, [main.s_best], [main.j_best], main.phase)[0],
+        excursion=excursion,
     )
-    if close and disagree:
-        reasons.append(
-            f"valve models disagree on S ({main.model} {main.s_best:.2f} %, "
-            f"{other.model} {other.s_best:.2f} %)"
-        )
-    # rule 6: in a stick-slip cycle the valve is stuck most of the time (OP reverses soon
-    # after each slip); a small deadband on a smoothly cycling OP is stuck only near reversals
-    v_best = _valve_positions(u, main.model, [main.s_best], [main.j_best], main.phase)[0]
-    stuck = float(np.mean(np.abs(np.diff(v_best)) < 1e-12))
-    if stuck < p.min_stuck_fraction:
-        reasons.append(
-            f"estimated valve stuck only {100 * stuck:.0f} % of the time: no stick-slip cycle"
-        )
-    # rule 7: about one slip per half-cycle. Many breakaways per period mean the model chops a
-    # smooth OP excursion into small steps (typically a He fit to a slow disturbance seen
-    # through a deadband).
-    moving = np.abs(np.diff(v_best)) > 1e-12
-    starts = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1
-    jumps = np.abs(np.diff(v_best))[starts]
-    min_jump = 0.5 * main.j_best if main.j_best > 0.1 * main.s_best else 0.0
-    n_slips = int(np.sum(jumps >= min_jump))
-    slips_per_period = n_slips * period_samples / max(1, u.size)
-    if slips_per_period > p.max_slips_per_period:
-        reasons.append(
-            f"{slips_per_period:.1f} valve slips per oscillation period: not a stick-slip cycle"
-        )
-    # rule 8: in a stick-slip (or backlash) cycle the OP reverses soon after the valve breaks
-    # free, so S is most of the OP travel per half-cycle
-    if excursion > 0 and main.s_best < p.min_excursion_share * excursion:
-        reasons.append(
-            f"S* = {main.s_best:.2f} % is a small part of the OP travel per half-cycle "
-            f"({excursion:.2f} %): the cycle is not explained by the valve"
-        )
-    # rule 9: a deadband alone (J = 0) does not sustain a limit cycle in a self-regulating loop
-    # under PI control: it takes a slip jump, or a second integrator in the process (McMillan,
-    # "Limit cycle periods", modelingandcontrol.com 2007). There a deadband fit means the cycle
-    # has another cause, or a stick-slip valve read with a too small S (a Kano valve with
-    # J = S/2 on slow loops fits as a deadband of 0.6 S).
-    if integrating is False and main.j_best < p.min_slip_ratio * main.s_best:
-        reasons.append(
-            f"J* = {main.j_best:.2f} % is a deadband without slip jump, which does not sustain a "
-            "limit cycle in a self-regulating loop: the cycle is not explained by the valve"
-        )
+    refused = refusals(ev)
+    reasons = [r.text for r in refused]
+    stuck = ev.stuck_fraction
     reliable = not reasons
     return QuantificationResult(
         S=main.s_best if reliable else None,
         J=main.j_best if reliable else None,
         reliable=reliable,
         reasons=reasons,
+        reason_codes=[r.code for r in refused],
         S_best=main.s_best,
         J_best=main.j_best,
         fit=main.fit,
