@@ -9,7 +9,8 @@ Units: OP in % (0–100); PV and SP in engineering units (ratios are unit-free).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -125,150 +126,185 @@ def fill_short_gaps(x: FloatArray, max_gap: int) -> tuple[FloatArray, int]:
     return np.asarray(filled, dtype=np.float64), longest
 
 
-def check_window(
-    pv: FloatArray,
-    op: FloatArray,
-    sp: FloatArray | None = None,
-    auto: BoolArray | None = None,
-    params: WindowParams | None = None,
-) -> WindowReport:
-    """Run the §1 window checks on one loop window.
+@dataclass
+class _Window:
+    """The window as the checks leave it, stage by stage: the signals (gap-filled once the gap
+    stage has run), the notes and indices so far, and what the later stages need."""
 
-    Parameters
-    ----------
-    pv, op:
-        Process variable (engineering units) and controller output (% 0–100), NaN = gap.
-    sp:
-        Set point (same units as PV); None means constant set point (estimated as mean PV).
-    auto:
-        True where the controller is in automatic (AUTO/CAS); None means always automatic.
-    """
-    p = params or WindowParams()
-    notes: list[str] = []
-    n = int(pv.size)
-    indices: dict[str, float] = {}
-    sp_arr = np.full(n, np.nan) if sp is None else np.asarray(sp, dtype=np.float64)
-    empty = WindowReport("insufficient_data", notes, pv, op, sp_arr, (0, n), indices)
-    if n < p.min_samples:
-        notes.append(f"only {n} samples; at least {p.min_samples} are needed for a diagnosis")
-        return empty
+    pv: FloatArray
+    op: FloatArray
+    sp: FloatArray
+    n: int
+    auto: BoolArray | None
+    sp_column: bool
+    """Whether a set point was given at all (a missing one is noted)."""
+    notes: list[str] = field(default_factory=list)
+    indices: dict[str, float] = field(default_factory=dict)
+    pv_range: float = 0.0
+    n_levels: int = 0
+    quantised: bool = False
+    clamp: Clamp | None = None
 
-    # manual mode: samples outside AUTO/CAS are left out (contracts §1)
-    if auto is not None:
-        auto_frac = float(np.mean(auto))
-        indices["auto_fraction"] = auto_frac
-        if auto_frac < p.min_auto_fraction:
-            notes.append(
-                f"loop in automatic only {100 * auto_frac:.0f} % of the window "
-                f"(needs {100 * p.min_auto_fraction:.0f} %)"
-            )
-            return WindowReport("manual_mode", notes, pv, op, sp_arr, (0, n), indices)
-        if auto_frac < 1.0:
-            pv = np.where(auto, pv, np.nan)
-            op = np.where(auto, op, np.nan)
-            notes.append(f"{int(np.sum(~auto))} manual-mode samples left out")
+    def stop(self, verdict: str, segment: tuple[int, int] | None = None) -> WindowReport:
+        """The report of a window refused with ``verdict``."""
+        return WindowReport(
+            verdict, self.notes, self.pv, self.op, self.sp, segment or (0, self.n), self.indices
+        )
 
-    missing = ~np.isfinite(pv) | ~np.isfinite(op)
+
+def _length(w: _Window, p: WindowParams) -> WindowReport | None:
+    """Too few samples for any test."""
+    if w.n >= p.min_samples:
+        return None
+    w.notes.append(f"only {w.n} samples; at least {p.min_samples} are needed for a diagnosis")
+    return w.stop("insufficient_data")
+
+
+def _mode(w: _Window, p: WindowParams) -> WindowReport | None:
+    """Manual mode: samples outside AUTO/CAS are left out (contracts §1); a window mostly in
+    manual is not judged."""
+    auto = w.auto
+    if auto is None:
+        return None
+    auto_frac = float(np.mean(auto))
+    w.indices["auto_fraction"] = auto_frac
+    if auto_frac < p.min_auto_fraction:
+        w.notes.append(
+            f"loop in automatic only {100 * auto_frac:.0f} % of the window "
+            f"(needs {100 * p.min_auto_fraction:.0f} %)"
+        )
+        return w.stop("manual_mode")
+    if auto_frac < 1.0:
+        w.pv = np.where(auto, w.pv, np.nan)
+        w.op = np.where(auto, w.op, np.nan)
+        w.notes.append(f"{int(np.sum(~auto))} manual-mode samples left out")
+    return None
+
+
+def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
+    """Missing samples (methods §1.2): too many refuse the window, short gaps are filled; a
+    missing set point is taken as constant at the mean PV."""
+    missing = ~np.isfinite(w.pv) | ~np.isfinite(w.op)
     miss_frac = float(np.mean(missing))
-    indices["missing_fraction"] = miss_frac
+    w.indices["missing_fraction"] = miss_frac
     if miss_frac >= 1.0:
-        notes.append("PV or OP has no numeric value in the whole window")
-        return WindowReport("data_quality", notes, pv, op, sp_arr, (0, n), indices)
-    if n - int(missing.sum()) < p.min_samples:
-        notes.append(
-            f"only {n - int(missing.sum())} samples with both PV and OP; "
+        w.notes.append("PV or OP has no numeric value in the whole window")
+        return w.stop("data_quality")
+    if w.n - int(missing.sum()) < p.min_samples:
+        w.notes.append(
+            f"only {w.n - int(missing.sum())} samples with both PV and OP; "
             f"at least {p.min_samples} are needed"
         )
-        return WindowReport("insufficient_data", notes, pv, op, sp_arr, (0, n), indices)
+        return w.stop("insufficient_data")
     if miss_frac > p.max_missing_fraction:
-        notes.append(
+        w.notes.append(
             f"{100 * miss_frac:.1f} % of samples missing "
             f"(limit {100 * p.max_missing_fraction:.0f} %)"
         )
-        return WindowReport("data_quality", notes, pv, op, sp_arr, (0, n), indices)
-    pv_f, gap_pv = fill_short_gaps(np.asarray(pv, dtype=np.float64), p.max_fill_gap)
-    op_f, gap_op = fill_short_gaps(np.asarray(op, dtype=np.float64), p.max_fill_gap)
+        return w.stop("data_quality")
+    sp_given = bool(np.isfinite(w.sp).any())
+    w.pv, gap_pv = fill_short_gaps(np.asarray(w.pv, dtype=np.float64), p.max_fill_gap)
+    w.op, gap_op = fill_short_gaps(np.asarray(w.op, dtype=np.float64), p.max_fill_gap)
     if miss_frac > 0:
-        notes.append(
+        w.notes.append(
             f"{int(missing.sum())} missing samples filled (longest gap {max(gap_pv, gap_op)})"
         )
-    if sp is None or not np.isfinite(sp_arr).any():
-        if sp is None:
-            notes.append("no SP column: set point assumed constant (mean of PV)")
-        sp_f = np.full(n, float(np.mean(pv_f)))
+    if sp_given:
+        w.sp, _ = fill_short_gaps(w.sp, p.max_fill_gap)
     else:
-        sp_f, _ = fill_short_gaps(sp_arr, p.max_fill_gap)
+        if not w.sp_column:
+            w.notes.append("no SP column: set point assumed constant (mean of PV)")
+        w.sp = np.full(w.n, float(np.mean(w.pv)))
+    return None
 
-    # frozen sensor and quantisation (methods §1.3)
-    pv_range = float(np.ptp(pv_f))
-    if pv_range == 0.0:
-        notes.append("PV is constant over the window (frozen sensor or no measurement)")
-        return WindowReport("data_quality", notes, pv_f, op_f, sp_f, (0, n), indices)
-    unchanged = float(np.mean(np.diff(pv_f) == 0.0))
-    indices["pv_unchanged_fraction"] = unchanged
+
+def _measurement(w: _Window, p: WindowParams) -> WindowReport | None:
+    """Frozen sensor and quantisation (methods §1.3)."""
+    w.pv_range = float(np.ptp(w.pv))
+    if w.pv_range == 0.0:
+        w.notes.append("PV is constant over the window (frozen sensor or no measurement)")
+        return w.stop("data_quality")
+    unchanged = float(np.mean(np.diff(w.pv) == 0.0))
+    w.indices["pv_unchanged_fraction"] = unchanged
     if unchanged > p.frozen_fraction:
-        notes.append(
+        w.notes.append(
             f"PV unchanged on {100 * unchanged:.0f} % of samples (frozen sensor or heavy "
             "historian compression)"
         )
-        return WindowReport("data_quality", notes, pv_f, op_f, sp_f, (0, n), indices)
-    n_levels = int(np.unique(pv_f).size)
-    unique_frac = n_levels / n
-    indices["pv_unique_fraction"] = unique_frac
-    quantised = unique_frac < p.quantised_unique_fraction
+        return w.stop("data_quality")
+    w.n_levels = int(np.unique(w.pv).size)
+    unique_frac = w.n_levels / w.n
+    w.indices["pv_unique_fraction"] = unique_frac
+    w.quantised = unique_frac < p.quantised_unique_fraction
+    return None
 
-    # OP saturation (methods §1.4) and clamps at any output limit (issue 25)
-    e_f = sp_f - pv_f
-    clamp = _clamped(op_f, e_f, p)
-    indices["saturation_fraction"] = clamp.fraction
+
+def _output(w: _Window, p: WindowParams) -> WindowReport | None:
+    """OP saturation (methods §1.4) and clamps at any output limit (issue 25): a clamp over
+    most of the window is ``saturation``, a constant OP without one manual mode."""
+    clamp = w.clamp = _clamped(w.op, w.sp - w.pv, p)
+    w.indices["saturation_fraction"] = clamp.fraction
     if clamp.limit is not None:
-        indices["op_limit"] = clamp.limit
-    if float(np.ptp(op_f)) == 0.0:
+        w.indices["op_limit"] = clamp.limit
+    if float(np.ptp(w.op)) == 0.0:
         if clamp.fraction >= 1.0:
-            notes.append(
-                f"OP held at {op_f[0]:g} % over the whole window with PV kept off set point: "
+            w.notes.append(
+                f"OP held at {w.op[0]:g} % over the whole window with PV kept off set point: "
                 "the output sits at a limit"
             )
-            return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
-        notes.append("OP constant over the window: controller in manual or output frozen")
-        return WindowReport("manual_mode", notes, pv_f, op_f, sp_f, (0, n), indices)
+            return replace(w.stop("saturation"), quantised=w.quantised)
+        w.notes.append("OP constant over the window: controller in manual or output frozen")
+        return w.stop("manual_mode")
     if clamp.fraction > p.saturation_fraction:
-        notes.append(
+        w.notes.append(
             f"OP clamped at its limit {clamp.limit:.4g} % for {100 * clamp.fraction:.0f} % of "
             "the window with PV off set point"
         )
-        return WindowReport("saturation", notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
+        return replace(w.stop("saturation"), quantised=w.quantised)
     if clamp.fraction > 0:
-        notes.append(
+        w.notes.append(
             f"OP at its limit {clamp.limit:.4g} % for {100 * clamp.fraction:.0f} % of the window"
         )
+    return None
 
-    # a clamped output is read before the PV's resolution: its offset is far above any step
-    if n_levels < p.quantised_min_levels:
-        notes.append(f"PV takes only {n_levels} distinct values: too coarsely quantised to judge")
-        return WindowReport("data_quality", notes, pv_f, op_f, sp_f, (0, n), indices)
-    if quantised:
-        notes.append(
-            f"PV quantised or compressed ({100 * unique_frac:.1f} % distinct values): "
-            "shape-based stiction tests are less reliable"
+
+def _resolution(w: _Window, p: WindowParams) -> WindowReport | None:
+    """PV resolution, read after the clamp (a clamped output's offset is far above any
+    step): too few distinct values refuse the window, a quantised PV is noted."""
+    if w.n_levels < p.quantised_min_levels:
+        w.notes.append(
+            f"PV takes only {w.n_levels} distinct values: too coarsely quantised to judge"
         )
+        return w.stop("data_quality")
+    if w.quantised:
+        w.notes.append(
+            f"PV quantised or compressed ({100 * w.indices['pv_unique_fraction']:.1f} % distinct "
+            "values): shape-based stiction tests are less reliable"
+        )
+    return None
 
-    # set-point stationarity: GI (global) and DI (point-wise), PCU [R]
+
+def _set_point(w: _Window, p: WindowParams) -> WindowReport:
+    """Set-point stationarity, GI (global) and DI (point-wise), PCU [R]: the steps, each
+    response's settling read from the data, and the settled stretches left to analyse."""
+    assert w.clamp is not None
+    sp_f, pv_f, op_f, n, notes, indices = w.sp, w.pv, w.op, w.n, w.notes, w.indices
     eps = 1e-12
-    gi = float(np.ptp(sp_f)) / (pv_range + eps)
-    di = float(np.max(np.abs(np.diff(sp_f)))) / (pv_range + eps)
+    gi = float(np.ptp(sp_f)) / (w.pv_range + eps)
+    di = float(np.max(np.abs(np.diff(sp_f)))) / (w.pv_range + eps)
     indices["sp_gi"] = gi
     indices["sp_di"] = di
     steps = np.zeros(0, dtype=np.int64)
     if gi >= p.gi_limit and di >= p.di_limit:
-        step_tol = max(p.di_limit * pv_range, 3.0 * noise_sigma(sp_f))
+        step_tol = max(p.di_limit * w.pv_range, 3.0 * noise_sigma(sp_f))
         steps = np.flatnonzero(np.abs(np.diff(sp_f)) > step_tol) + 1
         # a move spread over a few samples (an operator typing, a historian interpolating) is
         # one step
         steps = steps[np.concatenate(([True], np.diff(steps) > p.step_merge_samples))]
     elif gi >= p.gi_limit:
         notes.append("set point moves slowly (cascade or ramp): analysed the control error")
-    usable = ~clamp.mask
+    e_f = sp_f - pv_f
+    usable = ~w.clamp.mask
     settling: list[int] = []
     sigma_e = noise_sigma(e_f)
     for k in steps.tolist():
@@ -280,15 +316,15 @@ def check_window(
     seg_len = segment[1] - segment[0]
     needed = max(p.min_samples, p.min_segment_samples)
     segments = tuple(s for s in stretches if s[1] - s[0] >= needed)
-    if steps.size == 0 and (clamp.fraction == 0 or seg_len < needed):
-        return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, quantised)
+    if steps.size == 0 and (w.clamp.fraction == 0 or seg_len < needed):
+        return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, w.quantised)
     if seg_len < needed:
         notes.append(
             f"{steps.size} set-point step(s) with their responses leave no settled stretch of "
             f"{needed} samples (longest {seg_len}): too short for the oscillation and tuning tests"
         )
         return WindowReport(
-            "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, quantised, True,
+            "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, w.quantised, True,
             tuple(steps.tolist()),
         )  # fmt: skip
     if steps.size:
@@ -304,9 +340,51 @@ def check_window(
         )
     indices["sp_steps"] = float(steps.size)
     return WindowReport(
-        None, notes, pv_f, op_f, sp_f, segment, indices, quantised, False, tuple(steps.tolist()),
-        segments,
+        None, notes, pv_f, op_f, sp_f, segment, indices, w.quantised, False,
+        tuple(steps.tolist()), segments,
     )  # fmt: skip
+
+
+REFUSING_STAGES: tuple[Callable[[_Window, WindowParams], WindowReport | None], ...] = (
+    _length,
+    _mode,
+    _gaps,
+    _measurement,
+    _output,
+    _resolution,
+)
+"""The checks that may refuse a window, in order; the set-point stage then finds what to
+analyse."""
+
+
+def check_window(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray | None = None,
+    auto: BoolArray | None = None,
+    params: WindowParams | None = None,
+) -> WindowReport:
+    """Run the §1 window checks on one loop window, stage by stage: length, mode, gaps,
+    measurement, output, resolution, set point; the first stage that refuses the window
+    gives the verdict.
+
+    Parameters
+    ----------
+    pv, op:
+        Process variable (engineering units) and controller output (% 0–100), NaN = gap.
+    sp:
+        Set point (same units as PV); None means constant set point (estimated as mean PV).
+    auto:
+        True where the controller is in automatic (AUTO/CAS); None means always automatic.
+    """
+    p = params or WindowParams()
+    n = int(pv.size)
+    sp_arr = np.full(n, np.nan) if sp is None else np.asarray(sp, dtype=np.float64)
+    w = _Window(pv, op, sp_arr, n, auto, sp is not None)
+    for stage in REFUSING_STAGES:
+        if (report := stage(w, p)) is not None:
+            return report
+    return _set_point(w, p)
 
 
 @dataclass(frozen=True)
