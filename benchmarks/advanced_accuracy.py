@@ -46,9 +46,9 @@ def main() -> None:
                 worse.append(f"{c.name} (seed {seed}): standard {s.cause}, advanced {d.cause}")
             if c.valve_state == "ok":
                 healthy += 1
-                healthy_ok += d.valve is not None and d.valve["state"] == "ok"
+                healthy_ok += d.valve is not None and d.valve.state == "ok"
             if c.valve_state == "stiction" and d.cause == "stiction" and c.S is not None:
-                s_est = d.stiction.get("S")
+                s_est = d.stiction.S
                 if s_est is not None:
                     s_err.append(abs(float(s_est) - c.S))
     print(f"{'true cause':22s} {'advanced':>9s} {'standard':>9s}  advanced confusions")

@@ -34,10 +34,10 @@ def generated(seeds: list[int], lengths: tuple[int, ...], verbose: bool) -> floa
             )
             conf[(c.cause, d.cause)] += 1
             if verbose and d.cause != c.cause:
-                o = d.oscillation or {}
+                o = d.oscillation
                 print(
-                    f"  {c.name:55s} -> {d.cause:26s} P={o.get('period_s') or 0:7.1f} "
-                    f"r={o.get('regularity') or 0:6.2f} {d.stiction['tests']} "
+                    f"  {c.name:55s} -> {d.cause:26s} P={(o.period_s if o else None) or 0:7.1f} "
+                    f"r={(o.regularity if o else None) or 0:6.2f} {dict(d.stiction.tests)} "
                     f"ii={d.indices.get('idle_index')} | {d.notes[-1][:70] if d.notes else ''}"
                 )
     truth = sorted({a for a, _ in conf})
@@ -71,7 +71,7 @@ def isdb() -> None:
         mark = "yes" if good else ("no " if acc is not None else " - ")
         print(
             f"{lp.name:7s} {lp.loop_type:11s} {lp.ts:5g} {lp.label or '(none)':22s} "
-            f"{d.cause:26s} {mark} {d.stiction['tests']}"
+            f"{d.cause:26s} {mark} {dict(d.stiction.tests)}"
         )
     print(f"ISDB: {right} of {labelled} labelled loops right")
 

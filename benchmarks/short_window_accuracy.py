@@ -42,10 +42,10 @@ def main() -> None:
                 print(f"  {c.name:75s} -> {d.cause:22s} {d.notes[-1][:60] if d.notes else ''}")
             if c.cause == "stiction" and hit:
                 detected += 1
-                est = d.stiction.get("estimate") or {}
-                if est.get("S") is not None:
+                est = d.stiction.estimate
+                if est is not None and est.S is not None:
                     sized += 1
-                    errors[str(est["method"])].append(abs(float(est["S"]) - c.config.S))
+                    errors[est.method].append(abs(est.S - c.config.S))
     cells = sorted({cell for _, cell, _ in found})
     print(f"short-window family: seeds {args.seeds}, {time.perf_counter() - t0:.0f} s")
     print(f"{'noise-recording':22s} {'recall':>12s} {'false alarms':>14s}")

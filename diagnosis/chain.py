@@ -30,7 +30,7 @@ from plantcheck.diagnosis.quantification import (
     QuantificationResult,
     quantify_stiction,
 )
-from plantcheck.diagnosis.result import Diagnosis, action_for
+from plantcheck.diagnosis.result import Diagnosis, DiagnosisDraft, action_for
 from plantcheck.diagnosis.shape_tests import (
     ShapeParams,
     area_ratio,
@@ -136,7 +136,7 @@ def _confidence_from_vote(v: VoteResult, stiction: bool) -> float:
     return float(min(0.95, 0.5 + 0.5 * agree / v.n_tests))
 
 
-def diagnose(
+def _standard(
     pv: FloatArray,
     op: FloatArray,
     ts: float,
@@ -146,8 +146,8 @@ def diagnose(
     params: ChainParams | None = None,
     quantify: bool = True,
     exclude_stiction: bool = False,
-) -> Diagnosis:
-    """Run the standard chain on one window.
+) -> DiagnosisDraft:
+    """Run the standard chain on one window; the draft of its diagnosis.
 
     Parameters
     ----------
@@ -174,7 +174,7 @@ def diagnose(
     op = np.asarray(op, dtype=np.float64)
     n = int(pv.size)
     win = check_window(pv, op, sp, auto, p.window)
-    diag = Diagnosis(
+    diag = DiagnosisDraft(
         loop_type=loop_type,
         chain="standard",
         samples=n,
@@ -333,6 +333,21 @@ def diagnose(
     return diag
 
 
+def diagnose(
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    sp: FloatArray | None = None,
+    auto: BoolArray | None = None,
+    loop_type: str = "other",
+    params: ChainParams | None = None,
+    quantify: bool = True,
+    exclude_stiction: bool = False,
+) -> Diagnosis:
+    """Run the standard chain on one window (arguments: ``_standard``): the frozen diagnosis."""
+    return _standard(pv, op, ts, sp, auto, loop_type, params, quantify, exclude_stiction).freeze()
+
+
 def _events_vote(res: StickSlipResult, params: StickSlipParams) -> StictionTestResult:
     """The stick-slip test as a vote beside the oscillation-based tests: an oscillating loop
     (aggressive tuning, a periodic disturbance) turns OP at every half-cycle and gives a few
@@ -344,7 +359,7 @@ def _events_vote(res: StickSlipResult, params: StickSlipParams) -> StictionTestR
     return replace(res.test, verdict="undecided")
 
 
-def _events_into(diag: Diagnosis, res: StickSlipResult, ts: float) -> None:
+def _events_into(diag: DiagnosisDraft, res: StickSlipResult, ts: float) -> None:
     """The optional ``stiction.events`` (contracts §2): times in s from the window's first
     sample, OP travel in %, PV jump in PV units."""
     if res.events:
@@ -360,7 +375,7 @@ def _events_into(diag: Diagnosis, res: StickSlipResult, ts: float) -> None:
 
 
 def _stiction_from_events(
-    diag: Diagnosis, res: StickSlipResult, pv: FloatArray, op: FloatArray, gain_sign: int
+    diag: DiagnosisDraft, res: StickSlipResult, pv: FloatArray, op: FloatArray, gain_sign: int
 ) -> None:
     """Cause ``stiction`` from stick-slip events alone (no sustained oscillation needed).
 
@@ -387,7 +402,7 @@ def _stiction_from_events(
 
 
 def _estimate_into(
-    diag: Diagnosis, res: StickSlipResult, pv: FloatArray, op: FloatArray, gain_sign: int
+    diag: DiagnosisDraft, res: StickSlipResult, pv: FloatArray, op: FloatArray, gain_sign: int
 ) -> None:
     """The optional ``stiction.estimate``: the best size available (contracts §2).
 
@@ -409,7 +424,7 @@ def _estimate_into(
         st["estimate"] = {"S": st["apparent"], "J": None, "method": "ellipse", "reliable": False}
 
 
-def _stiction_action(diag: Diagnosis) -> dict[str, str]:
+def _stiction_action(diag: DiagnosisDraft) -> dict[str, str]:
     """The suggested action, sized by the best estimate and naming its method when that is
     not the Hammerstein identification."""
     est = diag.stiction.get("estimate") or {}
@@ -419,7 +434,7 @@ def _stiction_action(diag: Diagnosis) -> dict[str, str]:
 
 
 def _quantify_recent(
-    diag: Diagnosis,
+    diag: DiagnosisDraft,
     op: FloatArray,
     pv: FloatArray,
     ts: float,
@@ -456,7 +471,7 @@ def _filtered_note(
 
 
 def _quantify_into(
-    diag: Diagnosis,
+    diag: DiagnosisDraft,
     op: FloatArray,
     pv: FloatArray,
     ts: float,
@@ -517,23 +532,23 @@ def diagnose_advanced(
     loop-level pass only checks the window, finds the oscillation and splits its cause.
     """
     p = params or ChainParams()
-    std = diagnose(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True)
+    std = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True)
     std.chain = "advanced"
     if std.cause in WINDOW_VERDICTS:
         std.notes.append("valve not assessed: the window cannot be judged")
-        return std
+        return std.freeze()
     op_f, _ = fill_short_gaps(np.asarray(op, dtype=np.float64), p.window.max_fill_gap)
     mv_arr = np.asarray(mv, dtype=np.float64)
     if float(np.mean(~np.isfinite(mv_arr))) > p.window.max_missing_fraction:
         std.notes.append("MV has too many gaps: valve not assessed, standard chain verdict kept")
-        return std
+        return std.freeze()
     mv_f, _ = fill_short_gaps(mv_arr, p.window.max_fill_gap)
     va = classify_valve(op_f, mv_f, ts, p.valve)
     std.valve = {"state": va.state if va.state != "data_quality" else "unknown", "kpis": va.kpis}
     std.notes.extend(va.reasons)
     if va.state == "data_quality":
         std.notes.append("MV unusable (flat while OP moves): check the position feedback")
-        return std
+        return std.freeze()
     if va.state != "ok":
         std.cause = va.state
         std.confidence = 0.8
@@ -548,6 +563,6 @@ def diagnose_advanced(
                 q = _quantify_recent(std, op_f, pv_f, ts, std.oscillation["period_s"], p)
                 std.stiction["op_pv_estimate"] = {"S": q.S, "J": q.J, "reliable": q.reliable}
         std.actions = [action_for(std.cause, std.stiction.get("S"), std.stiction.get("J"))]
-        return std
+        return std.freeze()
     std.stiction["detected"] = False
-    return std
+    return std.freeze()

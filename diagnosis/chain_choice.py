@@ -39,9 +39,10 @@ def diagnose_loop(
         )
     d = diagnose(pv, op, ts, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify)
     if mv is not None:
-        d.notes.insert(
-            0,
-            f"MV recorded for {100 * coverage:.0f} % of the window (the advanced chain needs "
-            f"{100 * min_mv_coverage:.0f} %): standard chain",
+        d = d.with_notes_first(
+            [
+                f"MV recorded for {100 * coverage:.0f} % of the window (the advanced chain "
+                f"needs {100 * min_mv_coverage:.0f} %): standard chain"
+            ]
         )
     return d

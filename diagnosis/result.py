@@ -3,12 +3,24 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 from plantcheck.core.vocabulary import CAUSES, STATES, ActionCode, Cause, State
 
-__all__ = ["CAUSES", "STATES", "Diagnosis", "action_for", "json_safe", "priority_of", "state_of"]
+__all__ = [
+    "CAUSES",
+    "STATES",
+    "Action",
+    "Diagnosis",
+    "DiagnosisDraft",
+    "StictionOut",
+    "action_for",
+    "json_safe",
+    "priority_of",
+    "state_of",
+]
 
 SCHEMA = "plantcheck.diagnosis/1"
 
@@ -117,9 +129,192 @@ def json_safe(value: Any) -> Any:
     return value
 
 
-@dataclass
+@dataclass(frozen=True)
+class Action:
+    """A suggested action: its code (``ActionCode``) and the operator's text."""
+
+    code: str
+    text: str
+
+
+@dataclass(frozen=True)
+class OscillationSummary:
+    """The dominant oscillation: period (s), amplitude (signal units), regularity."""
+
+    period_s: float | None
+    amplitude: float | None
+    regularity: float | None
+
+
+@dataclass(frozen=True)
+class OscillationComponent:
+    """One oscillation found (contracts §2 ``oscillations``): period (s), amplitude, ACF
+    regularity after band-pass (None from the few-cycle test), share of the signal's power."""
+
+    period_s: float | None
+    amplitude: float | None
+    regularity: float | None
+    power_share: float | None
+
+
+@dataclass(frozen=True)
+class EventOut:
+    """A stick-slip event (contracts §2 ``stiction.events``): start and end in s from the
+    window's first sample, OP travel at breakaway (%), PV jump (PV units)."""
+
+    start: float
+    end: float
+    op_travel: float
+    pv_jump: float
+
+
+@dataclass(frozen=True)
+class SizeEstimate:
+    """The best stiction size available (contracts §2 ``stiction.estimate``), % of travel."""
+
+    S: float | None
+    J: float | None
+    method: str
+    """``hammerstein``, ``events``, ``ellipse`` (or ``measured`` from MV)."""
+    reliable: bool
+
+
+@dataclass(frozen=True)
+class VoteOut:
+    """The stiction tests' vote: decision and the counts for, against and voting."""
+
+    decision: str
+    n_for: int
+    n_against: int
+    tests: int
+
+
+@dataclass(frozen=True)
+class QuantificationOut:
+    """The Hammerstein identification behind ``S`` and ``J`` (methods §6.1)."""
+
+    reliable: bool
+    model: str
+    fit_percent: float | None
+    S_best: float | None
+    J_best: float | None
+    reasons: tuple[str, ...]
+    reason_codes: tuple[str, ...]
+    external_period_s: float | None
+    period_s: float | None
+
+
+@dataclass(frozen=True)
+class StictionOut:
+    """The stiction part (contracts §2 ``stiction``): ``S``/``J`` the Hammerstein (or, from
+    the advanced chain, measured) estimate in % of travel; the optional parts None when not
+    computed."""
+
+    detected: bool = False
+    S: float | None = None
+    J: float | None = None
+    tests: Mapping[str, float | str | None] = field(default_factory=dict)
+    votes: Mapping[str, str] | None = None
+    vote: VoteOut | None = None
+    events: tuple[EventOut, ...] | None = None
+    estimate: SizeEstimate | None = None
+    quantification: QuantificationOut | None = None
+    apparent: float | None = None
+    """Apparent stiction of the PV(OP) ellipse, % of OP (ranks valves; not S)."""
+    source: str | None = None
+    """``mv`` when S and J were measured from the stem position."""
+    op_pv_estimate: Mapping[str, float | bool | None] | None = None
+    """The OP/PV-only estimate beside a measured one (advanced chain)."""
+
+
+@dataclass(frozen=True)
+class ValveOut:
+    """The advanced chain's valve verdict from OP and MV: state and its indicators."""
+
+    state: str
+    kpis: Mapping[str, float | None]
+
+
+@dataclass(frozen=True)
 class Diagnosis:
-    """One loop diagnosis, as fixed by contracts.md §2 (units: seconds, % of valve travel)."""
+    """One loop diagnosis, as fixed by contracts.md §2 (units: seconds, % of valve travel):
+    frozen, every part typed; ``to_dict`` gives the JSON object."""
+
+    loop_type: str
+    chain: str
+    samples: int
+    sample_time_s: float
+    cause: str
+    confidence: float
+    oscillating: bool
+    oscillation: OscillationSummary | None = None
+    oscillations: tuple[OscillationComponent, ...] | None = None
+    """Every oscillation found, the dominant first (contracts §2 optional field)."""
+    stiction: StictionOut = field(default_factory=StictionOut)
+    valve: ValveOut | None = None
+    indices: Mapping[str, float | int | None] = field(default_factory=dict)
+    """The chain's indices (``idle_index``, ``hagglund_load_count``, ``saturation_fraction``,
+    ``sp_step_slowness``, ...), by name."""
+    actions: tuple[Action, ...] = ()
+    notes: tuple[str, ...] = ()
+
+    def with_notes_first(self, notes: Sequence[str]) -> Diagnosis:
+        """The same diagnosis with ``notes`` before its own (the record's or the store's)."""
+        return replace(self, notes=(*notes, *self.notes))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The contracts §2 JSON object (optional parts left out when not computed)."""
+        return {
+            "schema": SCHEMA,
+            "loop_type": self.loop_type,
+            "chain": self.chain,
+            "samples": self.samples,
+            "sample_time_s": json_safe(float(self.sample_time_s)),
+            "cause": self.cause,
+            "confidence": json_safe(round(float(self.confidence), 2)),
+            "oscillating": self.oscillating,
+            "oscillation": json_safe(_plain(self.oscillation)),
+            "oscillations": json_safe(_plain(self.oscillations)),
+            "stiction": json_safe(_stiction_json(self.stiction)),
+            "valve": json_safe(_plain(self.valve)),
+            "indices": json_safe(dict(self.indices)),
+            "actions": [{"code": a.code, "text": a.text} for a in self.actions],
+            "notes": list(self.notes),
+        }
+
+
+def _plain(value: Any) -> Any:
+    """Dataclasses, mappings and tuples as JSON's dicts and lists."""
+    if is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in fields(value)}
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _stiction_json(st: StictionOut) -> dict[str, Any]:
+    """``stiction`` of contracts §2: detected, S, J and tests always; the optional parts when
+    computed (the vote's counts under the keys ``for`` and ``against``)."""
+    out: dict[str, Any] = {"detected": st.detected, "S": st.S, "J": st.J, "tests": dict(st.tests)}
+    for name in ("votes", "events", "estimate", "quantification", "apparent", "source"):
+        value = getattr(st, name)
+        if value is not None:
+            out[name] = _plain(value)
+    if st.vote is not None:
+        v = st.vote
+        out["vote"] = {"decision": v.decision, "for": v.n_for, "against": v.n_against,
+                       "tests": v.tests}  # fmt: skip
+    if st.op_pv_estimate is not None:
+        out["op_pv_estimate"] = dict(st.op_pv_estimate)
+    return out
+
+
+@dataclass
+class DiagnosisDraft:
+    """The diagnosis while a chain builds it (mutable, parts as dicts); ``freeze`` gives the
+    typed, frozen ``Diagnosis`` the chains return."""
 
     loop_type: str
     chain: str
@@ -130,7 +325,6 @@ class Diagnosis:
     oscillating: bool
     oscillation: dict[str, float | None] | None = None
     oscillations: list[dict[str, float | None]] | None = None
-    """Every oscillation found, the dominant first (contracts §2 optional field)."""
     stiction: dict[str, Any] = field(
         default_factory=lambda: {"detected": False, "S": None, "J": None, "tests": {}}
     )
@@ -139,25 +333,67 @@ class Diagnosis:
     actions: list[dict[str, str]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
-    def to_dict(self) -> dict[str, Any]:
-        """The contracts §2 JSON object."""
-        return {
-            "schema": SCHEMA,
-            "loop_type": self.loop_type,
-            "chain": self.chain,
-            "samples": self.samples,
-            "sample_time_s": json_safe(float(self.sample_time_s)),
-            "cause": self.cause,
-            "confidence": json_safe(round(float(self.confidence), 2)),
-            "oscillating": self.oscillating,
-            "oscillation": json_safe(self.oscillation),
-            "oscillations": json_safe(self.oscillations),
-            "stiction": json_safe(self.stiction),
-            "valve": json_safe(self.valve),
-            "indices": json_safe(self.indices),
-            "actions": self.actions,
-            "notes": self.notes,
-        }
+    def freeze(self) -> Diagnosis:
+        """The typed, frozen diagnosis of this draft."""
+        return Diagnosis(
+            loop_type=self.loop_type,
+            chain=self.chain,
+            samples=self.samples,
+            sample_time_s=self.sample_time_s,
+            cause=self.cause,
+            confidence=self.confidence,
+            oscillating=self.oscillating,
+            oscillation=OscillationSummary(**self.oscillation) if self.oscillation else None,
+            oscillations=(
+                tuple(OscillationComponent(**c) for c in self.oscillations)
+                if self.oscillations is not None
+                else None
+            ),
+            stiction=_stiction_of(self.stiction),
+            valve=ValveOut(self.valve["state"], dict(self.valve["kpis"])) if self.valve else None,
+            indices=dict(self.indices),
+            actions=tuple(Action(a["code"], a["text"]) for a in self.actions),
+            notes=tuple(self.notes),
+        )
+
+
+def _stiction_of(st: dict[str, Any]) -> StictionOut:
+    vote = st.get("vote")
+    q = st.get("quantification")
+    est = st.get("estimate")
+    events = st.get("events")
+    return StictionOut(
+        detected=bool(st.get("detected", False)),
+        S=st.get("S"),
+        J=st.get("J"),
+        tests=dict(st.get("tests") or {}),
+        votes=dict(st["votes"]) if st.get("votes") is not None else None,
+        vote=(
+            VoteOut(vote["decision"], vote["for"], vote["against"], vote["tests"])
+            if vote is not None
+            else None
+        ),
+        events=tuple(EventOut(**e) for e in events) if events is not None else None,
+        estimate=SizeEstimate(**est) if est is not None else None,
+        quantification=(
+            QuantificationOut(
+                reliable=q["reliable"],
+                model=q["model"],
+                fit_percent=q["fit_percent"],
+                S_best=q["S_best"],
+                J_best=q["J_best"],
+                reasons=tuple(q["reasons"]),
+                reason_codes=tuple(q.get("reason_codes") or ()),
+                external_period_s=q["external_period_s"],
+                period_s=q["period_s"],
+            )
+            if q is not None
+            else None
+        ),
+        apparent=st.get("apparent"),
+        source=st.get("source"),
+        op_pv_estimate=dict(st["op_pv_estimate"]) if st.get("op_pv_estimate") else None,
+    )
 
 
 _FAULTS = frozenset(

@@ -123,33 +123,31 @@ def _summary(d: Diagnosis) -> str:
     if d.oscillation:
         o = d.oscillation
         lines.append(
-            f"oscillation: period {o['period_s'] or 0:.1f} s, amplitude {o['amplitude'] or 0:.3g}, "
-            f"regularity {o['regularity'] or 0:.2f}"
+            f"oscillation: period {o.period_s or 0:.1f} s, amplitude {o.amplitude or 0:.3g}, "
+            f"regularity {o.regularity or 0:.2f}"
         )
     else:
         lines.append("oscillation: none")
-    tests = d.stiction.get("tests") or {}
-    if tests:
+    st = d.stiction
+    if st.tests:
         shown = ", ".join(
-            f"{k} {v:.2f}" if isinstance(v, float) else f"{k} {v}" for k, v in tests.items()
+            f"{k} {v:.2f}" if isinstance(v, float) else f"{k} {v}" for k, v in st.tests.items()
         )
+        lines.append(f"stiction:    {'detected' if st.detected else 'not detected'} ({shown})")
+    for ev in st.events or ():
         lines.append(
-            f"stiction:    {'detected' if d.stiction['detected'] else 'not detected'} ({shown})"
+            f"event:       stuck from {ev.start:.0f} s, slipped by {ev.end:.0f} s: "
+            f"OP travel {ev.op_travel:.2f} %, PV jump {ev.pv_jump:+.3g}"
         )
-    for ev in d.stiction.get("events") or []:
-        lines.append(
-            f"event:       stuck from {ev['start']:.0f} s, slipped by {ev['end']:.0f} s: "
-            f"OP travel {ev['op_travel']:.2f} %, PV jump {ev['pv_jump']:+.3g}"
-        )
-    est = d.stiction.get("estimate")
-    if est and est.get("S") is not None:
-        j = f", J = {est['J']:.2f} %" if est.get("J") is not None else ""
-        sure = "reliable" if est.get("reliable") else "not reliable"
-        lines.append(f"size:        S = {est['S']:.2f} %{j} ({est['method']}, {sure})")
+    est = st.estimate
+    if est is not None and est.S is not None:
+        j = f", J = {est.J:.2f} %" if est.J is not None else ""
+        sure = "reliable" if est.reliable else "not reliable"
+        lines.append(f"size:        S = {est.S:.2f} %{j} ({est.method}, {sure})")
     if d.valve is not None:
-        lines.append(f"valve:       {d.valve['state']} (advanced chain, from MV)")
+        lines.append(f"valve:       {d.valve.state} (advanced chain, from MV)")
     for a in d.actions:
-        lines.append(f"action:      {a['text']}")
+        lines.append(f"action:      {a.text}")
     for note in d.notes:
         lines.append(f"note:        {note}")
     return "\n".join(lines)
@@ -186,7 +184,7 @@ def diagnose_cmd(
     auto = rec.auto[sl] if rec.auto is not None else None
     mv = rec.signals["mv"][sl] if "mv" in rec.signals else None
     d = diagnose_loop(pv, op, rec.sample_time_s, sp=sp, mv=mv, auto=auto, loop_type=loop_type.value)
-    d.notes = rec.notes + extra + d.notes
+    d = d.with_notes_first(rec.notes + extra)
     _emit(d.to_dict() if as_json else _summary(d), as_json)
 
 

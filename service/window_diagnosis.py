@@ -55,5 +55,4 @@ def diagnose_window(
         loop_type=loop_type,
         quantify=quantify,
     )
-    d.notes = (notes or []) + d.notes
-    return d.to_dict()
+    return d.with_notes_first(notes or []).to_dict()

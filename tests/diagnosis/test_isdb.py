@@ -39,5 +39,5 @@ def test_clear_stiction_loops(name: str) -> None:
     lp = next(x for x in LOOPS if x.name == name)
     d = diagnose(lp.pv, lp.op, lp.ts, loop_type=lp.loop_type)
     assert d.cause == "stiction"
-    assert d.stiction["detected"] is True
-    assert d.actions[0]["code"] == "valve_maintenance"
+    assert d.stiction.detected is True
+    assert d.actions[0].code == "valve_maintenance"

@@ -85,12 +85,13 @@ def test_diagnose_fills_S_J_only_for_stiction() -> None:
     op, pv, sp, _ = _loop(valve="kano", S=3.0, J=1.0)
     d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow")
     assert d.cause == "stiction"
-    assert d.stiction["S"] == pytest.approx(3.0, rel=0.15)
-    assert "S = 3.0 %" in d.actions[0]["text"]
-    assert d.stiction["apparent"] is not None and d.stiction["apparent"] > 0
+    st = d.stiction
+    assert pytest.approx(3.0, rel=0.15) == st.S
+    assert "S = 3.0 %" in d.actions[0].text
+    assert d.stiction.apparent is not None and d.stiction.apparent > 0
     op, pv, sp, _ = _loop(valve="linear")
     d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow")
-    assert d.cause != "stiction" and d.stiction["S"] is None
+    assert d.cause != "stiction" and d.stiction.S is None
 
 
 def test_ellipse_fit_and_chord() -> None:
@@ -307,11 +308,12 @@ def test_diagnose_quantifies_on_the_valve_cycle_beneath_an_external_oscillation(
     counted = ChainParams(vote=VoteParams(shape_confirmed=frozenset()))
     d = diagnose(r.pv, r.op, cfg.sample_time_s, sp=r.sp, loop_type="level", params=counted)
     assert d.cause == "stiction"
-    assert 15.0 < d.oscillation["period_s"] < 25.0
-    quant = d.stiction["quantification"]
-    assert 15.0 < quant["period_s"] < 25.0
-    assert d.stiction["S"] == pytest.approx(1.0, abs=0.05)
-    assert d.stiction["J"] == pytest.approx(1.0, abs=0.05)
+    assert d.oscillation is not None and 15.0 < (d.oscillation.period_s or 0) < 25.0
+    quant = d.stiction.quantification
+    assert quant is not None and 15.0 < (quant.period_s or 0) < 25.0
+    st = d.stiction
+    assert pytest.approx(1.0, abs=0.05) == st.S
+    assert pytest.approx(1.0, abs=0.05) == st.J
     assert any("external oscillation of period 189 s" in note for note in d.notes), d.notes
 
 

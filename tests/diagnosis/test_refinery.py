@@ -48,7 +48,7 @@ def test_refinery_tag_balanced_accuracy() -> None:
             loop_type=loop_type_of(r["tag"]),
             quantify=False,
         )
-        found = d.cause == "stiction" or bool(d.stiction.get("detected"))
+        found = d.cause == "stiction" or d.stiction.detected
         sticky = r["stiction"] == "1"
         by_tag[(r["tag"], sticky)].append(found == sticky)
     pos = [sum(v) / len(v) for (_, lab), v in by_tag.items() if lab]

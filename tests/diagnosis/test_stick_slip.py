@@ -143,15 +143,16 @@ def test_process_gain_from_slow_co_movement() -> None:
 def test_chain_reports_events_and_a_sized_estimate() -> None:
     r = simulate_loop(_slow_loop(valve="he", S=4.0, J=3.0))
     d = diagnose(r.pv, r.op, 10.0, sp=r.sp, loop_type="pressure")
-    assert d.cause == "stiction" and d.stiction["detected"] is True
-    events = d.stiction["events"]
-    assert events and all({"start", "end", "op_travel", "pv_jump"} <= set(e) for e in events)
-    assert all(0 <= e["start"] < e["end"] <= 720 * 10.0 for e in events)  # seconds
-    est = d.stiction["estimate"]
-    assert est["method"] == "events" and est["S"] > 0
-    assert d.stiction["S"] is None  # S/J keep their meaning: the Hammerstein estimate only
-    assert "stick-slip events" in d.actions[0]["text"]
-    assert d.to_dict()["stiction"]["estimate"]["method"] == "events"
+    assert d.cause == "stiction" and d.stiction.detected is True
+    events = d.stiction.events
+    assert events and all(0 <= e.start < e.end <= 720 * 10.0 for e in events)  # seconds
+    est = d.stiction.estimate
+    assert est is not None and est.method == "events" and est.S is not None and est.S > 0
+    assert d.stiction.S is None  # S/J keep their meaning: the Hammerstein estimate only
+    assert "stick-slip events" in d.actions[0].text
+    out = d.to_dict()["stiction"]
+    assert out["estimate"]["method"] == "events"
+    assert all({"start", "end", "op_travel", "pv_jump"} == set(e) for e in out["events"])
 
 
 def test_set_point_steps_do_not_hide_the_events() -> None:
