@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import BaseModel, Field
 
+from plantcheck.api.diagnosis_schema import DiagnosisJSON
 from plantcheck.core.vocabulary import ActionCode, Cause, LoopType, State
 
 __all__ = ["State"]  # re-exported for the routes' filters
@@ -34,7 +35,7 @@ class LoopOut(BaseModel):
 class LoopDetail(LoopOut):
     """A loop and its latest diagnosis."""
 
-    diagnosis: dict[str, Any] | None = Field(
+    diagnosis: DiagnosisJSON | None = Field(
         description="The latest diagnosis, the object of contracts §2 (null before the first)."
     )
     window_start: str | None = None
@@ -49,7 +50,7 @@ class DiagnosisOut(BaseModel):
     window_end: str
     cause: Cause
     state: State
-    diagnosis: dict[str, Any] = Field(description="The object of contracts §2.")
+    diagnosis: DiagnosisJSON = Field(description="The object of contracts §2.")
 
 
 class SampleOut(BaseModel):
