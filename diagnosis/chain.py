@@ -55,11 +55,18 @@ from plantcheck.diagnosis.stiction_vote import (
     is_integrating,
     vote,
 )
-from plantcheck.diagnosis.tuning import TuningParams, identify_pi, idle_filter_s, idle_index
+from plantcheck.diagnosis.tuning import (
+    PIEstimate,
+    TuningParams,
+    identify_pi,
+    idle_filter_s,
+    idle_index,
+)
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
     BoolArray,
     WindowParams,
+    WindowReport,
     check_window,
     fill_short_gaps,
 )
@@ -136,6 +143,34 @@ def _confidence_from_vote(v: VoteResult, stiction: bool) -> float:
     return float(min(0.95, 0.5 + 0.5 * agree / v.n_tests))
 
 
+@dataclass
+class _Run:
+    """One window on its way through the chain: the checked window, the settings, the draft
+    diagnosis and what the steps found so far (the stick-slip events, the controller)."""
+
+    win: WindowReport
+    ts: float
+    loop_type: str
+    p: ChainParams
+    quantify: bool
+    exclude_stiction: bool
+    diag: DiagnosisDraft
+    events: StickSlipResult | None = None
+    pi_window: PIEstimate | None = None
+    gain_sign: int = 1
+
+
+@dataclass(frozen=True)
+class _Stretch:
+    """The samples [a, b) the oscillation and tuning tests read, what they found there, and
+    the controller identified on them."""
+
+    a: int
+    b: int
+    osc: OscillationResult
+    pi: PIEstimate
+
+
 def _standard(
     pv: FloatArray,
     op: FloatArray,
@@ -148,6 +183,10 @@ def _standard(
     exclude_stiction: bool = False,
 ) -> DiagnosisDraft:
     """Run the standard chain on one window; the draft of its diagnosis.
+
+    The steps: check the window (IM), read the stick-slip events, let the window's own verdict
+    stand, find the oscillation (AIM), then judge a quiet loop (tuning, events) or an
+    oscillating one (FAM/SAM: the stiction tests' vote, else the tuning/disturbance split).
 
     Parameters
     ----------
@@ -172,12 +211,11 @@ def _standard(
     p = params or ChainParams()
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
-    n = int(pv.size)
     win = check_window(pv, op, sp, auto, p.window)
     diag = DiagnosisDraft(
         loop_type=loop_type,
         chain="standard",
-        samples=n,
+        samples=int(pv.size),
         sample_time_s=ts,
         cause="ok",
         confidence=0.0,
@@ -187,26 +225,54 @@ def _standard(
     diag.indices["hagglund_load_count"] = None
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
-    events = None
-    pi_window = None
-    if win.verdict is None or win.sp_limited:
-        # the controller identified on the whole window gives the process gain's sign
-        pi_window = identify_pi(win.op, win.pv, win.sp, ts)
-        gain_sign = pi_window.gain_sign
-        events = detect_stick_slip(
-            win.pv, win.op, win.sp, is_integrating(loop_type), gain_sign, p.stick_slip
-        )
-        _events_into(diag, events, ts)
-        if win.verdict is not None and events.test.verdict == "stiction" and not exclude_stiction:
-            # set-point steps hide the oscillation tests, not the events around them
-            _stiction_from_events(diag, events, win.pv, win.op, gain_sign)
-            return diag
-    if win.verdict is not None:
-        diag.cause = win.verdict
-        diag.confidence = 0.9
-        diag.actions = [action_for(win.verdict)]
+    run = _Run(win, ts, loop_type, p, quantify, exclude_stiction, diag)
+    if _read_events(run) or _window_verdict(run):
         return diag
+    stretch = _find_oscillation(run)
+    if stretch.osc.oscillating:
+        _judge_oscillation(run, stretch)
+    else:
+        _judge_quiet_loop(run, stretch)
+    return diag
 
+
+def _read_events(run: _Run) -> bool:
+    """Stick-slip events on the whole window (also where set-point steps leave no settled
+    stretch); True when they decide the window alone."""
+    win, diag = run.win, run.diag
+    if win.verdict is not None and not win.sp_limited:
+        return False
+    # the controller identified on the whole window gives the process gain's sign
+    run.pi_window = identify_pi(win.op, win.pv, win.sp, run.ts)
+    run.gain_sign = run.pi_window.gain_sign
+    run.events = detect_stick_slip(
+        win.pv, win.op, win.sp, is_integrating(run.loop_type), run.gain_sign, run.p.stick_slip
+    )
+    _events_into(diag, run.events, run.ts)
+    decides = win.verdict is not None and run.events.test.verdict == "stiction"
+    if decides and not run.exclude_stiction:
+        # set-point steps hide the oscillation tests, not the events around them
+        _stiction_from_events(diag, run.events, win.pv, win.op, run.gain_sign)
+        return True
+    return False
+
+
+def _window_verdict(run: _Run) -> bool:
+    """The window checks' verdict (data quality, manual mode, saturation, too little left)
+    stands; True when there is one."""
+    verdict = run.win.verdict
+    if verdict is None:
+        return False
+    run.diag.cause = verdict
+    run.diag.confidence = 0.9
+    run.diag.actions = [action_for(verdict)]
+    return True
+
+
+def _find_oscillation(run: _Run) -> _Stretch:
+    """The oscillation test (AIM) on the control error of the settled stretch, then of the
+    other settled stretches, then on OP; the controller identified on the stretch read."""
+    win, ts, p, diag = run.win, run.ts, run.p, run.diag
     a, b = win.segment
     osc = detect_oscillation(win.sp[a:b] - win.pv[a:b], ts, p.oscillation)
     if not osc.oscillating:
@@ -221,9 +287,8 @@ def _standard(
                 )
                 break
     pv_s, op_s, sp_s = win.pv[a:b], win.op[a:b], win.sp[a:b]
-    e = sp_s - pv_s
-    whole = (a, b) == (0, n)
-    pi = pi_window if whole and pi_window is not None else identify_pi(op_s, pv_s, sp_s, ts)
+    whole = (a, b) == (0, diag.samples)
+    pi = run.pi_window if whole and run.pi_window is not None else identify_pi(op_s, pv_s, sp_s, ts)
     diag.indices["controller_fit"] = pi.fit
     diag.indices["controller_ti_s"] = pi.ti_s if pi.fit >= p.tuning.pi_min_fit else None
     if not osc.oscillating:
@@ -237,72 +302,85 @@ def _standard(
             osc = osc_op
     diag.indices["hagglund_load_count"] = osc.load_count
     diag.oscillating = osc.oscillating
+    return _Stretch(a, b, osc, pi)
 
-    if not osc.oscillating:
-        diag.notes.append(f"no sustained oscillation: {osc.reason}")
-        ti = pi.ti_s if (pi.ti_s and pi.fit >= p.tuning.pi_min_fit) else None
-        tf = idle_filter_s(sp_s - pv_s, ts, ti, p.tuning)
-        # The idle index assumes a self-regulating process: an integrating loop always needs
-        # OP to overshoot to bring the level back, so the index is negative whatever the tuning.
-        ii = (
-            None
-            if is_integrating(loop_type)
-            else idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
+
+def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
+    """A loop without sustained oscillation: sluggish tuning from its set-point step
+    responses or its idle index (Hägglund), or stiction from its stick-slip events, or ok."""
+    win, ts, p, diag, events = run.win, run.ts, run.p, run.diag, run.events
+    pv_s, op_s, sp_s = win.pv[st.a : st.b], win.op[st.a : st.b], win.sp[st.a : st.b]
+    pi = st.pi
+    diag.notes.append(f"no sustained oscillation: {st.osc.reason}")
+    ti = pi.ti_s if (pi.ti_s and pi.fit >= p.tuning.pi_min_fit) else None
+    tf = idle_filter_s(sp_s - pv_s, ts, ti, p.tuning)
+    # The idle index assumes a self-regulating process: an integrating loop always needs
+    # OP to overshoot to bring the level back, so the index is negative whatever the tuning.
+    ii = (
+        None
+        if is_integrating(run.loop_type)
+        else idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
+    )
+    diag.indices["idle_index"] = ii
+    sluggish = ii is not None and ii > p.tuning.idle_limit
+    responses = sp_step_responses(win.pv, win.sp, np.asarray(win.steps, dtype=np.int64))
+    slowness = step_slowness(responses)
+    diag.indices["sp_step_slowness"] = slowness
+    if slowness is not None:
+        # a set-point step is a clean experiment: it overrules the idle index, which only
+        # sees load recoveries and reads a healthy slow loop's creep as sluggish
+        sluggish = slowness > p.tuning.step_slowness_limit
+        diag.notes.append(
+            f"set-point step response(s): closed-loop time constant {slowness:.1f} x the "
+            f"dead time (median of {len(responses)}; sluggish above "
+            f"{p.tuning.step_slowness_limit:g})"
         )
-        diag.indices["idle_index"] = ii
-        sluggish = ii is not None and ii > p.tuning.idle_limit
-        responses = sp_step_responses(win.pv, win.sp, np.asarray(win.steps, dtype=np.int64))
-        slowness = step_slowness(responses)
-        diag.indices["sp_step_slowness"] = slowness
-        if slowness is not None:
-            # a set-point step is a clean experiment: it overrules the idle index, which only
-            # sees load recoveries and reads a healthy slow loop's creep as sluggish
-            sluggish = slowness > p.tuning.step_slowness_limit
-            diag.notes.append(
-                f"set-point step response(s): closed-loop time constant {slowness:.1f} x the "
-                f"dead time (median of {len(responses)}; sluggish above "
-                f"{p.tuning.step_slowness_limit:g})"
-            )
-        if events is not None and events.test.verdict == "stiction" and not exclude_stiction:
-            # A sluggish loop creeps toward SP with OP and PV together (idle index > 0); a load
-            # change toward SP then looks like a slip. A sticky valve holds the PV while OP
-            # moves and slips against it (index <= 0), unless it does not move at all. Between
-            # set-point steps the index reads the tail of a step response, which creeps toward
-            # SP in any loop: there it cannot overrule the events.
-            after_steps = bool(win.steps)
-            if not sluggish or events.unresponsive is not None or after_steps:
-                _stiction_from_events(diag, events, win.pv, win.op, gain_sign)
-                return diag
-            diag.notes.append(
-                "stick-slip events set aside: the loop recovers like a sluggish one "
-                f"(idle index {ii:.2f})"
-            )
-        if sluggish and slowness is not None:
-            diag.cause = "sluggish_tuning"
-            diag.confidence = float(min(0.9, 0.5 + 0.05 * slowness))
-        elif sluggish and ii is not None:
-            diag.cause = "sluggish_tuning"
-            diag.confidence = float(min(0.9, 0.5 + (ii - p.tuning.idle_limit)))
-        else:
-            diag.cause = "ok"
-            diag.confidence = 0.7 if ii is not None else 0.6
-        diag.actions = [action_for(diag.cause)]
-        return diag
+    if events is not None and events.test.verdict == "stiction" and not run.exclude_stiction:
+        # A sluggish loop creeps toward SP with OP and PV together (idle index > 0); a load
+        # change toward SP then looks like a slip. A sticky valve holds the PV while OP
+        # moves and slips against it (index <= 0), unless it does not move at all. Between
+        # set-point steps the index reads the tail of a step response, which creeps toward
+        # SP in any loop: there it cannot overrule the events.
+        after_steps = bool(win.steps)
+        if not sluggish or events.unresponsive is not None or after_steps:
+            _stiction_from_events(diag, events, win.pv, win.op, run.gain_sign)
+            return
+        diag.notes.append(
+            "stick-slip events set aside: the loop recovers like a sluggish one "
+            f"(idle index {ii:.2f})"
+        )
+    if sluggish and slowness is not None:
+        diag.cause = "sluggish_tuning"
+        diag.confidence = float(min(0.9, 0.5 + 0.05 * slowness))
+    elif sluggish and ii is not None:
+        diag.cause = "sluggish_tuning"
+        diag.confidence = float(min(0.9, 0.5 + (ii - p.tuning.idle_limit)))
+    else:
+        diag.cause = "ok"
+        diag.confidence = 0.7 if ii is not None else 0.6
+    diag.actions = [action_for(diag.cause)]
 
+
+def _judge_oscillation(run: _Run, st: _Stretch) -> None:
+    """An oscillating loop (FAM/SAM): the applicable stiction tests and their vote, with the
+    stick-slip events beside them; stiction is quantified, any other oscillation split
+    between aggressive tuning and an external disturbance (``cause_split``)."""
+    win, ts, p, diag, events, osc = run.win, run.ts, run.p, run.diag, run.events, st.osc
+    pv_s, op_s, sp_s = win.pv[st.a : st.b], win.op[st.a : st.b], win.sp[st.a : st.b]
     diag.oscillation = {
         "period_s": osc.period_s,
         "amplitude": osc.amplitude,
         "regularity": osc.regularity,
     }
     diag.oscillations = oscillations_json(osc)
-    if exclude_stiction:
+    if run.exclude_stiction:
         no_stiction = VoteResult("no_stiction", 0, 0, 0, -1.0)
-        split = split_cause(op_s, pv_s, ts, osc, {}, no_stiction, pi, loop_type, p.split)
+        split = split_cause(op_s, pv_s, ts, osc, {}, no_stiction, st.pi, run.loop_type, p.split)
         diag.cause, diag.confidence = split.cause, split.confidence
         diag.notes.append(split.reason + " (valve healthy: stiction excluded)")
         diag.actions = [action_for(diag.cause)]
-        return diag
-    tests = run_stiction_tests(e, op_s, pv_s, ts, osc, loop_type, p)
+        return
+    tests = run_stiction_tests(sp_s - pv_s, op_s, pv_s, ts, osc, run.loop_type, p)
     if events is not None:
         tests["stick_slip"] = _events_vote(events, p.stick_slip)
     v = vote(list(tests.values()), p.vote)
@@ -320,17 +398,16 @@ def _standard(
         diag.cause = "stiction"
         diag.confidence = _confidence_from_vote(v, True)
         diag.notes.append(f"stiction: {v.n_stiction} of {v.n_tests} tests agree")
-        if quantify:
+        if run.quantify:
             _quantify_into(diag, op_s, pv_s, ts, osc, p)
         if events is not None:
-            _estimate_into(diag, events, win.pv, win.op, gain_sign)
+            _estimate_into(diag, events, win.pv, win.op, run.gain_sign)
     else:
-        split = split_cause(op_s, pv_s, ts, osc, tests, v, pi, loop_type, p.split)
+        split = split_cause(op_s, pv_s, ts, osc, tests, v, st.pi, run.loop_type, p.split)
         diag.cause = split.cause
         diag.confidence = split.confidence
         diag.notes.append(split.reason)
     diag.actions = [_stiction_action(diag)]
-    return diag
 
 
 def diagnose(
