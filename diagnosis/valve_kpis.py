@@ -16,6 +16,7 @@ of the increments), then:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -336,57 +337,118 @@ def valve_kpis(
     return kpis, s_v, j_v
 
 
+@dataclass(frozen=True)
+class _Reading:
+    """The indicators of one window and what the class tests share: friction (the stem stuck
+    most of the time with a stickband) and hunting (MV cycling on its own)."""
+
+    kpis: dict[str, float | int | None]
+    s_v: float | None
+    j_v: float | None
+    friction: bool
+    hunts: bool
+
+    def value(self, name: str) -> float:
+        """An indicator as a number (0 when not computed)."""
+        return float(self.kpis[name] or 0.0)
+
+
+def _undersized(r: _Reading, p: ValveParams) -> ValveAssessment | None:
+    """The stem at its speed limit while a large error asks for more."""
+    if not (
+        r.value("rate_limited_share") > p.rate_share
+        and r.value("speed_saturation") > p.speed_saturation
+    ):
+        return None
+    why = (
+        f"MV at its speed limit {r.kpis['max_speed_per_s']:.2f} %/s with a large error "
+        f"{100 * r.value('rate_limited_share'):.1f} % of the time"
+    )
+    return ValveAssessment("actuator_undersized", r.kpis, None, None, [why])
+
+
+def _air_leakage(r: _Reading, p: ValveParams) -> ValveAssessment | None:
+    """The stem drifts toward its fail position. Friction and hunting move MV on their own:
+    the static fits (drift, calibration) read their cycles as a trend or a map error, so they
+    must not be behind this verdict or the next."""
+    drift, share = r.value("drift_per_hour"), r.value("drift_share")
+    if not (abs(drift) > p.drift_limit and share > p.drift_share and not (r.friction or r.hunts)):
+        return None
+    why = f"e_v drifts {drift:+.2f} %/h ({100 * share:.0f} % of its variance)"
+    return ValveAssessment("air_leakage", r.kpis, None, None, [why])
+
+
+def _positioner_fault(r: _Reading, p: ValveParams) -> ValveAssessment | None:
+    """A steady offset or gain between OP and MV: the positioner's calibration."""
+    bias, gain = r.value("bias"), r.kpis["gain"]
+    gain_bad = gain is not None and abs(float(gain) - 1.0) > p.gain_limit
+    steady = r.value("residual_std") < p.calibration_scatter
+    if not ((abs(bias) > p.bias_limit or gain_bad) and steady and not (r.friction or r.hunts)):
+        return None
+    why = f"positioner calibration: bias {bias:+.2f} %" + (
+        f", gain {float(gain):.3f}" if gain is not None else ""
+    )
+    return ValveAssessment("positioner_fault", r.kpis, None, None, [why])
+
+
+def _friction(r: _Reading, p: ValveParams) -> ValveAssessment | None:
+    """Stick-slip (a slip jump) or a deadband without slip, sized from MV(OP)."""
+    if not r.friction or r.s_v is None:
+        return None
+    s_v, j_v = r.s_v, r.j_v
+    if j_v is not None and j_v > p.slip_ratio * s_v:
+        f_st = r.value("stuck_fraction")
+        why = f"stick-slip: S_v = {s_v:.2f} %, J_v = {j_v:.2f} %, f_st = {f_st:.2f}"
+        return ValveAssessment("stiction", r.kpis, s_v, j_v, [why])
+    why = f"deadband without slip: S_v = {s_v:.2f} %, J_v = {j_v or 0:.2f} %"
+    return ValveAssessment("deadband_backlash", r.kpis, s_v, j_v, [why])
+
+
+def _positioner_tuning(r: _Reading, p: ValveParams) -> ValveAssessment | None:
+    """The stem hunts: MV oscillates in a band where OP does not."""
+    ratio = r.kpis["mv_only_ratio"]
+    if not r.hunts or ratio is None:
+        return None
+    why = (
+        f"MV oscillates on its own: amplitude {r.value('mv_only_oscillation'):.2f} %, period "
+        f"{r.kpis['mv_only_period_s']:.1f} s, {float(ratio):.0f}x OP's power in that band"
+    )
+    return ValveAssessment("positioner_tuning", r.kpis, None, None, [why])
+
+
+VALVE_CLASSES: tuple[Callable[[_Reading, ValveParams], ValveAssessment | None], ...] = (
+    _undersized,
+    _air_leakage,
+    _positioner_fault,
+    _friction,
+    _positioner_tuning,
+)
+"""The actuator classes of methods §7.3, in the order they are tested: the first wins."""
+
+
 def classify_valve(
     op: FloatArray, mv: FloatArray, ts: float, params: ValveParams | None = None
 ) -> ValveAssessment:
-    """Actuator state of methods §7.3, evaluated in order; the first matching class wins."""
+    """Actuator state of methods §7.3, evaluated in order (``VALVE_CLASSES``); the first
+    matching class wins, ``ok`` when none does."""
     p = params or ValveParams()
     if float(np.ptp(mv)) < p.resolution and float(np.ptp(op)) >= p.stuck_min_travel:
         kp: dict[str, float | int | None] = {"mv_range": float(np.ptp(mv))}
         return ValveAssessment("data_quality", kp, None, None, ["MV flat while OP moves"])
     kpis, s_v, j_v = valve_kpis(op, mv, ts, p)
-    reasons: list[str] = []
-    bias = float(kpis["bias"] or 0.0)
-    drift = float(kpis["drift_per_hour"] or 0.0)
-    drift_share = float(kpis["drift_share"] or 0.0)
     f_st = float(kpis["stuck_fraction"] or 0.0)
-    gain = kpis["gain"]
-    hunting = float(kpis["mv_only_oscillation"] or 0.0)
-    rate_share = float(kpis["rate_limited_share"] or 0.0)
-    friction = f_st > p.stuck_fraction and s_v is not None and s_v > p.min_stickband
     ratio = kpis["mv_only_ratio"]
-    hunts = hunting > p.hunting_amplitude and ratio is not None and float(ratio) > p.hunting_ratio
-    saturated = float(kpis["speed_saturation"] or 0.0) > p.speed_saturation
-    if rate_share > p.rate_share and saturated:
-        reasons.append(
-            f"MV at its speed limit {kpis['max_speed_per_s']:.2f} %/s with a large error "
-            f"{100 * rate_share:.1f} % of the time"
-        )
-        return ValveAssessment("actuator_undersized", kpis, None, None, reasons)
-    # friction and hunting move MV on their own: the static fits below (drift, calibration)
-    # read their cycles as a trend or a map error, so they must not be behind those verdicts
-    if abs(drift) > p.drift_limit and drift_share > p.drift_share and not (friction or hunts):
-        reasons.append(f"e_v drifts {drift:+.2f} %/h ({100 * drift_share:.0f} % of its variance)")
-        return ValveAssessment("air_leakage", kpis, None, None, reasons)
-    gain_bad = gain is not None and abs(float(gain) - 1.0) > p.gain_limit
-    steady = float(kpis["residual_std"] or 0.0) < p.calibration_scatter
-    if (abs(bias) > p.bias_limit or gain_bad) and steady and not (friction or hunts):
-        reasons.append(
-            f"positioner calibration: bias {bias:+.2f} %"
-            + (f", gain {float(gain):.3f}" if gain is not None else "")
-        )
-        return ValveAssessment("positioner_fault", kpis, None, None, reasons)
-    if friction and s_v is not None:
-        if j_v is not None and j_v > p.slip_ratio * s_v:
-            reasons.append(f"stick-slip: S_v = {s_v:.2f} %, J_v = {j_v:.2f} %, f_st = {f_st:.2f}")
-            return ValveAssessment("stiction", kpis, s_v, j_v, reasons)
-        reasons.append(f"deadband without slip: S_v = {s_v:.2f} %, J_v = {j_v or 0:.2f} %")
-        return ValveAssessment("deadband_backlash", kpis, s_v, j_v, reasons)
-    if hunts and ratio is not None:
-        period = kpis["mv_only_period_s"]
-        reasons.append(
-            f"MV oscillates on its own: amplitude {hunting:.2f} %, period {period:.1f} s, "
-            f"{float(ratio):.0f}x OP's power in that band"
-        )
-        return ValveAssessment("positioner_tuning", kpis, None, None, reasons)
-    return ValveAssessment("ok", kpis, None, None, reasons)
+    hunting = float(kpis["mv_only_oscillation"] or 0.0)
+    reading = _Reading(
+        kpis,
+        s_v,
+        j_v,
+        friction=f_st > p.stuck_fraction and s_v is not None and s_v > p.min_stickband,
+        hunts=hunting > p.hunting_amplitude
+        and ratio is not None
+        and float(ratio) > p.hunting_ratio,
+    )
+    for test in VALVE_CLASSES:
+        if (found := test(reading, p)) is not None:
+            return found
+    return ValveAssessment("ok", kpis, None, None, [])
