@@ -1,10 +1,11 @@
 """``GET /api/v1/reports/stiction``: per valve, S and J over time, the weekly medians, the
 robust trend and the date S is projected to pass the valve's limit.
 
-The estimates were made by the scheduler (the diagnosis chain's best S, J with its method);
-this route only summarises them: weekly medians and the Theil–Sen line of
-``diagnosis.stiction_trend`` (Bacci di Capaci & Scali 2014) over the requested period, from one
-method per valve (a Hammerstein S and an apparent stiction are not the same quantity).
+The estimates were made by the scheduler (the diagnosis chain's best S, J with its method),
+and each valve's trend was computed when its latest estimate was stored (``storage/trends``:
+the Theil–Sen line of ``diagnosis.stiction_trend``, Bacci di Capaci & Scali 2014, over all its
+estimates of one method). This route only reads them and lists the requested period's
+estimates with the weekly medians of the trend's method.
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ from fastapi import APIRouter, Depends, Query, Response
 
 from plantcheck.api.deps import Backend, TimeRange, iso, iso_required, require_read_key
 from plantcheck.api.models import StictionPoint, StictionReport, ValveReport, WeekOut
-from plantcheck.diagnosis.stiction_trend import TrendParams, stiction_trend
-from plantcheck.storage.results import METHOD_RANK, StoredEstimate, stiction_history
+from plantcheck.diagnosis.stiction_trend import TrendParams
+from plantcheck.storage.results import stiction_history
+from plantcheck.storage.trends import StoredEstimate, StoredTrend, read_trends
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
@@ -46,48 +48,37 @@ def _weeks(at: np.ndarray, S: np.ndarray, J: np.ndarray) -> list[WeekOut]:
     return out
 
 
-def trend_method(rows: list[StoredEstimate], min_estimates: int) -> str | None:
-    """The method a valve's trend is read from: the most direct one with ``min_estimates``
-    reliable estimates, else the most direct one with any reliable estimate, else the most
-    direct one present (whose unreliable points then give no trend)."""
-    present = [m for m in METHOD_RANK if any(r.method == m for r in rows)]
-    for enough in (min_estimates, 1):
-        for m in present:
-            if sum(r.method == m and r.reliable for r in rows) >= enough:
-                return m
-    return present[0] if present else None
-
-
-def valve_report(loop: str, rows: list[StoredEstimate], limit: float) -> ValveReport:
-    """One valve's report from its estimates: the trend, weekly medians and current S come
-    from one method (``trend_method``); every estimate is listed with its method."""
-    params = TrendParams(limit=limit)
-    method = trend_method(rows, params.min_estimates)
-    used = [r for r in rows if r.method == method]
+def valve_report(
+    loop: str, rows: list[StoredEstimate], trend: StoredTrend | None, limit: float
+) -> ValveReport:
+    """One valve's report: its estimates in the period, each with its method, the weekly
+    medians of the trend's method, and the trend stored with its latest estimate."""
+    method = trend.method if trend is not None else None
+    used = [r for r in rows if r.method == method and r.reliable]
     at = np.array([r.at_us for r in used], dtype=np.int64)
     S = np.array([r.S for r in used], dtype=np.float64)
     J = np.array([np.nan if r.J is None else r.J for r in used], dtype=np.float64)
-    ok = np.array([r.reliable for r in used], dtype=bool)
-    tr = stiction_trend(at / 1e6, S, J, ok, params)
-    crossing = tr.projected_crossing_s
-    note = tr.note
-    others = len(rows) - int(ok.sum())
-    if method is not None and others:
-        note += (
-            f" (from {int(ok.sum())} reliable {method} estimates; {others} other "
-            "estimates listed, not in the trend)"
-        )
+    if trend is None:
+        note = "no trend yet: it is computed when the valve's next estimate is stored"
+    else:
+        note = trend.note
+        others = len(rows) - len(used)
+        if method is not None and others:
+            note += (
+                f" (from {trend.used} reliable {method} estimates; {others} other "
+                "estimates listed, not in the trend)"
+            )
     return ValveReport(
         loop=loop,
-        limit=limit,
-        current_S=tr.current_S,
-        current_J=tr.current_J,
-        slope_per_week=tr.slope_per_week,
-        above_limit=tr.above_limit,
-        projected_crossing=iso(int(crossing * 1e6)) if crossing is not None else None,
+        limit=trend.limit if trend is not None else limit,
+        current_S=trend.current_S if trend is not None else None,
+        current_J=trend.current_J if trend is not None else None,
+        slope_per_week=trend.slope_per_week if trend is not None else None,
+        above_limit=trend.above_limit if trend is not None else False,
+        projected_crossing=iso(trend.projected_crossing_us) if trend is not None else None,
         note=note,
         trend_method=method,
-        weeks=_weeks(at[ok], S[ok], J[ok]),
+        weeks=_weeks(at, S, J),
         estimates=[
             StictionPoint(
                 time=iso_required(r.at_us),
@@ -144,13 +135,14 @@ def report_csv(report: StictionReport) -> str:
 
 async def build_report(backend: Backend, times: TimeRange) -> StictionReport:
     history = await stiction_history(backend.store, times.start_us, times.end_us)
+    trends = await read_trends(backend.store)
     limits = backend.stiction_limits
     return StictionReport(
         generated_at=iso_required(time.time_ns() // 1000),
         start=iso(times.start_us),
         end=iso(times.end_us),
         valves=[
-            valve_report(loop, rows, limits.get(loop, TrendParams().limit))
+            valve_report(loop, rows, trends.get(loop), limits.get(loop, TrendParams().limit))
             for loop, rows in history.items()
         ],
     )

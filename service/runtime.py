@@ -111,6 +111,7 @@ def schedules_of(cfg: Config) -> list[LoopSchedule]:
             lp.window_s or d.window_s,
             lp.period_s or d.period_s,
             SIGNALS if lp.source in change_only else HELD,
+            lp.stiction_limit,
         )
         for lp in cfg.loop
     ]

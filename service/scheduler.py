@@ -85,6 +85,8 @@ class LoopSchedule:
     hold: tuple[str, ...] = HELD
     """Signals that keep their value between samples (all of them for OPC UA sources, which
     report changes only; SP and mode otherwise)."""
+    stiction_limit: float = 2.0
+    """The valve's S limit, % of travel (its trend's projection)."""
 
 
 @dataclass
@@ -348,6 +350,7 @@ class DiagnosisScheduler:
             stiction_source="mv" if method == "measured" else "op_pv",
             stiction_method=method,
             stiction_reliable=reliable,
+            stiction_limit=self.schedules[row.name].stiction_limit,
         )
         st = self.state[row.name]
         if cause == st.last_cause:

@@ -17,6 +17,7 @@ from sqlalchemy.sql.elements import ColumnElement
 
 from plantcheck.storage.schema import actions, diagnoses, loops, stiction_estimates
 from plantcheck.storage.store import LoopRow, Store
+from plantcheck.storage.trends import METHOD_RANK, StoredEstimate, refresh_trends
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,8 @@ class Verdict:
     """How S was estimated: ``hammerstein``, ``events``, ``ellipse`` (contracts §2) or
     ``measured`` (from the stem position)."""
     stiction_reliable: bool = True
+    stiction_limit: float = 2.0
+    """The valve's S limit (% of travel) its trend is projected to (the loop's setting)."""
 
 
 @dataclass(frozen=True)
@@ -149,6 +152,8 @@ async def record_verdicts(store: Store, batch: Sequence[PendingVerdict]) -> list
                     for v in estimates
                 ],
             )
+            now_us = max(v.created_us for v in estimates)
+            await refresh_trends(conn, [(v.loop.id, v.stiction_limit) for v in estimates], now_us)
     return changed
 
 
@@ -198,10 +203,6 @@ async def _adopt(conn: AsyncConnection, batch: Sequence[PendingVerdict]) -> None
                 for v in opened
             ],
         )
-
-
-METHOD_RANK = ("measured", "hammerstein", "events", "ellipse")
-"""Stiction estimate methods from the most to the least direct measure of S."""
 
 
 async def loop_statuses(
@@ -308,19 +309,6 @@ async def active_actions(store: Store) -> list[dict[str, Any]]:
     )
     async with store.engine.connect() as conn:
         return [r._asdict() for r in (await conn.execute(q)).all()]
-
-
-@dataclass(frozen=True)
-class StoredEstimate:
-    """One stored stiction estimate: time (µs), S and J (% of travel), where it came from
-    (``op_pv`` or ``mv``), its method and whether it passed its method's rules."""
-
-    at_us: int
-    S: float
-    J: float | None
-    source: str
-    method: str
-    reliable: bool
 
 
 async def stiction_history(

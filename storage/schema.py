@@ -131,6 +131,24 @@ stiction_estimates = Table(
     Index("ix_stiction_loop_time", "loop_id", "at_us"),
 )
 
+stiction_trends = Table(
+    "stiction_trends",
+    metadata,
+    # each valve's trend as of its latest estimate (``storage/trends.py``): computed when an
+    # estimate is stored, so the report only reads it
+    Column("loop_id", Integer, ForeignKey("loops.id", ondelete="CASCADE"), primary_key=True),
+    Column("computed_us", BigInteger, nullable=False),
+    Column("method", String(16), nullable=True),
+    Column("limit_s", Float, nullable=False),
+    Column("current_s", Float, nullable=True),
+    Column("current_j", Float, nullable=True),
+    Column("slope_per_week", Float, nullable=True),
+    Column("above_limit", Boolean, nullable=False),
+    Column("projected_crossing_us", BigInteger, nullable=True),
+    Column("used", Integer, nullable=False),
+    Column("note", Text, nullable=False),
+)
+
 actions = Table(
     "actions",
     metadata,

@@ -1,6 +1,7 @@
 """Every stored stiction estimate names its method (issue 24): the scheduler picks the best size
-a diagnosis has, the store keeps the method (migration 0003 for older databases), and the trend
-report reads one method per valve and lists the others apart."""
+a diagnosis has, the store keeps the method (migration 0003 for older databases) and computes
+each valve's trend from one method when it stores an estimate, and the report reads that trend
+and lists the other methods apart."""
 
 from __future__ import annotations
 
@@ -14,17 +15,13 @@ from pathlib import Path
 from helpers import T0, verdict_of
 
 from plantcheck.api.models import StictionReport
-from plantcheck.api.reports import report_csv, trend_method, valve_report
+from plantcheck.api.reports import report_csv, valve_report
 from plantcheck.service.config import Config
 from plantcheck.service.scheduler import stored_estimate
 from plantcheck.storage.database import upgrade
-from plantcheck.storage.results import (
-    PendingVerdict,
-    StoredEstimate,
-    loop_statuses,
-    stiction_history,
-)
+from plantcheck.storage.results import PendingVerdict, loop_statuses, stiction_history
 from plantcheck.storage.store import Store
+from plantcheck.storage.trends import StoredEstimate, read_trends, trend_method, valve_trend
 from plantcheck.storage.verdict_writer import VerdictWriter
 
 HOUR = 3_600_000_000
@@ -56,7 +53,8 @@ def test_trend_reads_one_method_and_lists_the_others() -> None:
     rows += [_row(T0 + k * WEEK + HOUR, 9.0, "ellipse", False) for k in range(4)]
     rows += [_row(T0 + 5 * WEEK, 2.5, "events", True)]
     assert trend_method(rows, 3) == "hammerstein"
-    rep = valve_report("FV1", sorted(rows, key=lambda r: r.at_us), limit=2.0)
+    rows.sort(key=lambda r: r.at_us)
+    rep = valve_report("FV1", rows, valve_trend(rows, 2.0, T0 + 6 * WEEK), limit=2.0)
     assert rep.trend_method == "hammerstein"
     assert rep.current_S is not None and rep.current_S < 2.0  # the ellipse's 9 % is not S
     assert rep.slope_per_week is not None and rep.slope_per_week > 0
@@ -73,7 +71,7 @@ def test_events_make_the_trend_when_nothing_better_exists() -> None:
     rows.append(_row(T0 + 4 * WEEK, 3.0, "ellipse", False))
     assert trend_method(rows, 3) == "events"
     only_unreliable = [_row(T0, 4.0, "ellipse", False)]
-    rep = valve_report("FV2", only_unreliable, limit=2.0)
+    rep = valve_report("FV2", only_unreliable, valve_trend(only_unreliable, 2.0, T0), limit=2.0)
     assert rep.trend_method == "ellipse" and rep.current_S is None
 
 
@@ -112,6 +110,12 @@ def test_store_keeps_the_method(tmp_path: Path) -> None:
             # the loop table keeps the identified S between identifications
             (status,) = await loop_statuses(store, "L1")
             assert (status.S, status.J, status.S_method) == (3.0, 1.0, "hammerstein")
+            # the trend was stored with the estimates, from one method: the most direct one
+            # with a reliable estimate (three are needed for a slope)
+            trend = (await read_trends(store))["L1"]
+            assert (trend.method, trend.current_S, trend.used) == ("hammerstein", 3.0, 1)
+            assert trend.slope_per_week is None and "at least 3" in trend.note
+            assert trend.computed_us == T0 + 2 * HOUR
             return (await stiction_history(store))["L1"]
         finally:
             await writer.close()

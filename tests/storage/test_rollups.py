@@ -12,7 +12,7 @@ import pytest
 
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_SENSOR_FAILURE, GOOD
-from plantcheck.storage.database import upgrade
+from plantcheck.storage.database import head_revision, upgrade
 from plantcheck.storage.rollups import HOUR_US, purge_hours, read_hours, roll_up
 from plantcheck.storage.store import Store
 from plantcheck.storage.writer import SampleWriter
@@ -96,7 +96,7 @@ def test_migration_adds_the_hour_table_to_an_older_database(tmp_path: Path) -> N
     con.close()
     upgrade(url)
     con = sqlite3.connect(path)
-    assert con.execute("SELECT version_num FROM alembic_version").fetchone()[0] == "0005"
+    assert con.execute("SELECT version_num FROM alembic_version").fetchone()[0] == head_revision()
     assert con.execute("SELECT count(*) FROM sample_hours").fetchone()[0] == 0
     con.close()
 
