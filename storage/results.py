@@ -17,7 +17,12 @@ from sqlalchemy.sql.elements import ColumnElement
 
 from plantcheck.storage.schema import actions, diagnoses, loops, stiction_estimates
 from plantcheck.storage.store import LoopRow, Store
-from plantcheck.storage.trends import METHOD_RANK, StoredEstimate, refresh_trends
+from plantcheck.storage.trends import (
+    ESTIMATE_COLUMNS,
+    METHOD_RANK,
+    StoredEstimate,
+    refresh_trends,
+)
 
 
 @dataclass(frozen=True)
@@ -316,15 +321,7 @@ async def stiction_history(
 ) -> dict[str, list[StoredEstimate]]:
     """Per loop name: its stiction estimates, oldest first."""
     q = (
-        select(
-            loops.c.name,
-            stiction_estimates.c.at_us,
-            stiction_estimates.c.S,
-            stiction_estimates.c.J,
-            stiction_estimates.c.source,
-            stiction_estimates.c.method,
-            stiction_estimates.c.reliable,
-        )
+        select(loops.c.name, *ESTIMATE_COLUMNS)
         .join(loops, loops.c.id == stiction_estimates.c.loop_id)
         .where(*_between(stiction_estimates.c.at_us, start_us, end_us))
         .order_by(loops.c.name, stiction_estimates.c.at_us)
@@ -332,7 +329,7 @@ async def stiction_history(
     out: dict[str, list[StoredEstimate]] = {}
     async with store.engine.connect() as conn:
         for r in (await conn.execute(q)).all():
-            est = StoredEstimate(r.at_us, r.S, r.J, r.source, r.method, bool(r.reliable))
+            est = StoredEstimate.of(r)
             out.setdefault(r.name, []).append(est)
     return out
 

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from sqlalchemy import delete, insert, select
+from sqlalchemy import Row, delete, insert, select
 from sqlalchemy.ext.asyncio import AsyncConnection
 
 from plantcheck.diagnosis.stiction_trend import TrendParams, stiction_trend
@@ -36,6 +37,22 @@ class StoredEstimate:
     source: str
     method: str
     reliable: bool
+
+    @classmethod
+    def of(cls, r: Row[*tuple[Any, ...]]) -> StoredEstimate:
+        """From a row of ``ESTIMATE_COLUMNS``."""
+        return cls(r.at_us, r.S, r.J, r.source, r.method, bool(r.reliable))
+
+
+ESTIMATE_COLUMNS = (
+    stiction_estimates.c.at_us,
+    stiction_estimates.c.S,
+    stiction_estimates.c.J,
+    stiction_estimates.c.source,
+    stiction_estimates.c.method,
+    stiction_estimates.c.reliable,
+)
+"""The columns a ``StoredEstimate`` is read from."""
 
 
 @dataclass(frozen=True)
@@ -100,21 +117,11 @@ async def refresh_trends(
     caller's transaction (the one that stored the new estimates)."""
     for loop_id, limit in limits:
         q = (
-            select(
-                stiction_estimates.c.at_us,
-                stiction_estimates.c.S,
-                stiction_estimates.c.J,
-                stiction_estimates.c.source,
-                stiction_estimates.c.method,
-                stiction_estimates.c.reliable,
-            )
+            select(*ESTIMATE_COLUMNS)
             .where(stiction_estimates.c.loop_id == loop_id)
             .order_by(stiction_estimates.c.at_us)
         )
-        rows = [
-            StoredEstimate(r.at_us, r.S, r.J, r.source, r.method, bool(r.reliable))
-            for r in (await conn.execute(q)).all()
-        ]
+        rows = [StoredEstimate.of(r) for r in (await conn.execute(q)).all()]
         tr = valve_trend(rows, limit, now_us)
         await conn.execute(delete(stiction_trends).where(stiction_trends.c.loop_id == loop_id))
         await conn.execute(
