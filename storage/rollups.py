@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from sqlalchemy import and_, delete, func, select, text
 
 from plantcheck.core.status_codes import BAD
-from plantcheck.storage.schema import sample_hours, samples, tags
+from plantcheck.storage.schema import sample_hours, samples
 from plantcheck.storage.store import LoopRow, Store, signal_range
 
 HOUR_US = 3_600_000_000
@@ -75,12 +75,7 @@ async def roll_up(
     ``lookback_us`` before each tag's last roll-up) of ``tag_ids`` (None: every tag); returns
     the hour rows written."""
     end = until_us // HOUR_US * HOUR_US
-    async with store.engine.connect() as conn:
-        ids = (
-            list(tag_ids)
-            if tag_ids is not None
-            else list((await conn.execute(select(tags.c.id))).scalars())
-        )
+    ids = list(tag_ids) if tag_ids is not None else await store.tag_ids()
     written = 0
     for i in range(0, len(ids), TAGS_PER_TRANSACTION):
         async with store.engine.begin() as conn:
@@ -108,11 +103,13 @@ async def roll_up(
     return written
 
 
-async def purge_hours(store: Store, before_us: int) -> int:
-    """Delete roll-ups of hours starting before ``before_us`` (a key range per tag)."""
+async def purge_hours(store: Store, before_us: int, tag_ids: Iterable[int] | None = None) -> int:
+    """Delete roll-ups of hours starting before ``before_us`` of ``tag_ids`` (None: every tag),
+    a key range per tag."""
+    ids = list(tag_ids) if tag_ids is not None else await store.tag_ids()
     deleted = 0
     async with store.engine.begin() as conn:
-        for tag in (await conn.execute(select(tags.c.id))).scalars().all():
+        for tag in ids:
             res = await conn.execute(
                 delete(sample_hours).where(
                     sample_hours.c.tag_id == tag, sample_hours.c.hour_us < before_us

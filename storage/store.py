@@ -496,9 +496,14 @@ class Store:
         return {sig: counts[t] for sig, t in loop.tags.items() if t in counts}
 
     # -- housekeeping --------------------------------------------------------------------
-    async def purge(self, before_us: int) -> int:
-        """Delete samples older than ``before_us`` (retention) except each tag's newest one
-        before it; returns how many were deleted.
+    async def tag_ids(self) -> list[int]:
+        """Every tag's id."""
+        async with self.engine.connect() as conn:
+            return list((await conn.execute(select(tags.c.id).order_by(tags.c.id))).scalars())
+
+    async def purge(self, before_us: int, tag_ids: Sequence[int] | None = None) -> int:
+        """Delete samples older than ``before_us`` (retention) of ``tag_ids`` (None: every
+        tag) except each tag's newest one before it; returns how many were deleted.
 
         A source that reports only changes (OPC UA) stores a constant set point or mode, or a
         valve stuck for weeks, once: that sample is the value held ever since (``last_before``),
@@ -517,9 +522,10 @@ class Store:
         older = delete(samples).where(
             samples.c.tag_id == bindparam("tag"), samples.c.ts_us < newest
         )
+        ids = list(tag_ids) if tag_ids is not None else await self.tag_ids()
         deleted = 0
         async with self.engine.begin() as conn:
-            for tag_id in (await conn.execute(select(tags.c.id))).scalars().all():
+            for tag_id in ids:
                 res = await conn.execute(older, {"tag": tag_id})
                 deleted += int(res.rowcount or 0)
         return deleted

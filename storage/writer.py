@@ -7,7 +7,8 @@ is written back first, oldest first, idempotently (same tag and timestamp stored
 new samples. A failure is logged once and the recovery once. On SQLite the WAL is checkpointed
 every ``checkpoint_every_s``. Every hour the writer rolls its own tags' complete hours up into
 ``sample_hours`` (``rollups.roll_up``: the long trends), then deletes samples older than
-``retention_s`` and roll-ups older than ``rollup_retention_s``.
+``retention_s`` and roll-ups older than ``rollup_retention_s``: ``housekeeping_slice`` tags
+between two commits, so a large site's housekeeping never holds samples back for long.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ class SampleWriter:
         purge_every_s: float = 3600.0,
         rollup_tags: Sequence[int] = (),
         rollup_retention_s: float | None = None,
+        housekeeping_slice: int = 200,
     ) -> None:
         self.store = store
         self.buffer = DurableBuffer(buffer_path, buffer_max_samples)
@@ -65,9 +67,13 @@ class SampleWriter:
         self.checkpoint_every_s = checkpoint_every_s
         self.retention_s = retention_s
         self.purge_every_s = purge_every_s
-        self.rollup_tags = tuple(rollup_tags)
+        self._own = frozenset(rollup_tags)
         """The tags this writer rolls up: its own (each collector and the service theirs)."""
         self.rollup_retention_s = rollup_retention_s
+        self.housekeeping_slice = housekeeping_slice
+        self._chores: list[int] = []
+        """Tags still to housekeep this hour."""
+        self._purged = 0
         self.stats = WriterStats()
         self._pending: list[Sample] = []
         self._task: asyncio.Task[None] | None = None
@@ -79,6 +85,11 @@ class SampleWriter:
     def dropped(self) -> int:
         """Samples lost because the durable buffer was full."""
         return self.buffer.dropped
+
+    @property
+    def housekeeping_pending(self) -> int:
+        """Tags still to housekeep this hour."""
+        return len(self._chores)
 
     @property
     def depth(self) -> int:
@@ -137,26 +148,39 @@ class SampleWriter:
         self.stats.store_up = True
         self._retry_s = self.commit_interval_s
 
-    async def purge_old(self) -> int:
-        """Apply the retention policy: delete samples older than ``retention_s``."""
-        if self.retention_s is None:
-            return 0
-        cutoff_us = time.time_ns() // 1000 - int(self.retention_s * 1e6)
-        n = await self.store.purge(cutoff_us)
-        if n:
-            log.info(
-                "retention: deleted %d samples older than %.0f days", n, self.retention_s / 86400
-            )
-        return n
-
-    async def roll_up_hours(self) -> int:
-        """Roll this writer's tags up by the hour (before the samples are purged), and delete
-        roll-ups older than ``rollup_retention_s``."""
+    async def housekeep(self, tag_ids: Sequence[int]) -> tuple[int, int]:
+        """The hourly housekeeping of ``tag_ids``: roll this writer's own ones up by the hour
+        (before their samples go), then apply the retention of samples and of roll-ups;
+        returns (hours rolled up, samples deleted)."""
         now_us = time.time_ns() // 1000
-        n = await roll_up(self.store, now_us, self.rollup_tags) if self.rollup_tags else 0
+        mine = [t for t in tag_ids if t in self._own]
+        hours = await roll_up(self.store, now_us, mine) if mine else 0
+        deleted = 0
+        if self.retention_s is not None:
+            deleted = await self.store.purge(now_us - int(self.retention_s * 1e6), tag_ids)
         if self.rollup_retention_s is not None:
-            await purge_hours(self.store, now_us - int(self.rollup_retention_s * 1e6))
-        return n
+            await purge_hours(self.store, now_us - int(self.rollup_retention_s * 1e6), tag_ids)
+        return hours, deleted
+
+    async def housekeep_all(self) -> tuple[int, int]:
+        """All of the hourly housekeeping at once (every tag of the store)."""
+        return await self.housekeep(await self.store.tag_ids())
+
+    async def _housekeep_slice(self) -> None:
+        """One slice of the hourly housekeeping, between two commits: a site of 40,000 tags
+        takes minutes of it, and samples must not wait that long."""
+        chunk, self._chores = (
+            self._chores[: self.housekeeping_slice],
+            self._chores[self.housekeeping_slice :],
+        )
+        _, deleted = await self.housekeep(chunk)
+        self._purged += deleted
+        if not self._chores and self._purged and self.retention_s is not None:
+            log.info(
+                "retention: deleted %d samples older than %.0f days",
+                self._purged,
+                self.retention_s / 86400,
+            )
 
     async def _run(self) -> None:
         last_checkpoint = time.monotonic()
@@ -169,12 +193,14 @@ class SampleWriter:
                 with contextlib.suppress(Exception):
                     await self.store.checkpoint()
                 last_checkpoint = time.monotonic()
-            if time.monotonic() - last_purge > self.purge_every_s and self.stats.store_up:
+            due = time.monotonic() - last_purge > self.purge_every_s
+            if due and not self._chores and self.stats.store_up:
                 with contextlib.suppress(Exception):
-                    await self.roll_up_hours()
-                with contextlib.suppress(Exception):
-                    await self.purge_old()
+                    self._chores, self._purged = await self.store.tag_ids(), 0
                 last_purge = time.monotonic()
+            if self._chores and self.stats.store_up:
+                with contextlib.suppress(Exception):
+                    await self._housekeep_slice()
 
     def start(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run())

@@ -101,27 +101,45 @@ def test_migration_adds_the_hour_table_to_an_older_database(tmp_path: Path) -> N
     con.close()
 
 
-def test_the_writer_rolls_up_its_own_tags_every_hour(tmp_path: Path) -> None:
+def test_the_writer_housekeeps_its_own_tags_in_slices(tmp_path: Path) -> None:
+    """Every hour, a few tags between two commits: its own tags rolled up (another collector's
+    are not), every tag's old samples purged, the roll-ups kept."""
     url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
     upgrade(url)
 
     async def run() -> None:
         store = await Store.open(url)
         try:
-            mine = await store.ensure_loop("MINE", signals=("pv",))
+            mine = await store.ensure_loop("MINE", signals=("pv", "op"))
             other = await store.ensure_loop("OTHER", signals=("pv",))
             now = time.time_ns() // 1000 // HOUR_US * HOUR_US
             rows = [
-                Sample(lp.tags["pv"], now - HOUR_US + m * MIN, now, 1.0, GOOD)
-                for lp in (mine, other)
-                for m in range(60)
+                Sample(tag, now - 2 * HOUR_US + m * MIN, now, 1.0, GOOD)
+                for tag in (*mine.tags.values(), other.tags["pv"])
+                for m in range(120)
             ]
             await store.write_samples(rows)
-            writer = SampleWriter(store, tmp_path / "buffer.db", rollup_tags=[mine.tags["pv"]])
-            assert await writer.roll_up_hours() == 1
-            assert len(await read_hours(store, mine)) == 1
+            writer = SampleWriter(
+                store,
+                tmp_path / "buffer.db",
+                commit_interval_s=0.05,
+                retention_s=1800.0,
+                purge_every_s=0.0,
+                rollup_tags=list(mine.tags.values()),
+                housekeeping_slice=1,
+            )
+            writer.start()
+            try:
+                for _ in range(100):
+                    await asyncio.sleep(0.05)
+                    if len(await read_hours(store, mine)) == 4 and not writer.housekeeping_pending:
+                        break
+            finally:
+                await writer.stop()
+            assert len(await read_hours(store, mine)) == 4  # 2 tags x 2 complete hours
             assert await read_hours(store, other) == []  # another collector's tag
-            writer.buffer.close()
+            # the samples older than 30 min are gone (each tag's newest before it kept)
+            assert await store.count_samples() <= 3 * 31
         finally:
             await store.close()
 
