@@ -7,8 +7,9 @@ is written back first, oldest first, idempotently (same tag and timestamp stored
 new samples. A failure is logged once and the recovery once. On SQLite the WAL is checkpointed
 every ``checkpoint_every_s``. Every hour the writer rolls its own tags' complete hours up into
 ``sample_hours`` (``rollups.roll_up``: the long trends), then deletes samples older than
-``retention_s`` and roll-ups older than ``rollup_retention_s``: ``housekeeping_slice`` tags
-between two commits, so a large site's housekeeping never holds samples back for long.
+``retention_s`` and roll-ups older than ``rollup_retention_s``: in a task of its own beside the
+commits, ``housekeeping_slice`` tags at a time, so a large site's housekeeping never holds
+samples back.
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ class SampleWriter:
         rollup_tags: Sequence[int] = (),
         rollup_retention_s: float | None = None,
         housekeeping_slice: int = 200,
+        housekeeping_pause_s: float = 0.2,
     ) -> None:
         self.store = store
         self.buffer = DurableBuffer(buffer_path, buffer_max_samples)
@@ -71,12 +73,14 @@ class SampleWriter:
         """The tags this writer rolls up: its own (each collector and the service theirs)."""
         self.rollup_retention_s = rollup_retention_s
         self.housekeeping_slice = housekeeping_slice
+        self.housekeeping_pause_s = housekeeping_pause_s
         self._chores: list[int] = []
         """Tags still to housekeep this hour."""
         self._purged = 0
         self.stats = WriterStats()
         self._pending: list[Sample] = []
         self._task: asyncio.Task[None] | None = None
+        self._house_task: asyncio.Task[None] | None = None
         self._stop = asyncio.Event()
         self._retry_s = commit_interval_s
         self._next_try = 0.0
@@ -167,8 +171,7 @@ class SampleWriter:
         return await self.housekeep(await self.store.tag_ids())
 
     async def _housekeep_slice(self) -> None:
-        """One slice of the hourly housekeeping, between two commits: a site of 40,000 tags
-        takes minutes of it, and samples must not wait that long."""
+        """One slice of the hourly housekeeping: a site of 40,000 tags takes minutes of it."""
         chunk, self._chores = (
             self._chores[: self.housekeeping_slice],
             self._chores[self.housekeeping_slice :],
@@ -184,7 +187,6 @@ class SampleWriter:
 
     async def _run(self) -> None:
         last_checkpoint = time.monotonic()
-        last_purge = 0.0
         while not self._stop.is_set():
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._stop.wait(), self.commit_interval_s)
@@ -193,21 +195,38 @@ class SampleWriter:
                 with contextlib.suppress(Exception):
                     await self.store.checkpoint()
                 last_checkpoint = time.monotonic()
-            due = time.monotonic() - last_purge > self.purge_every_s
-            if due and not self._chores and self.stats.store_up:
+
+    async def _housekeeping(self) -> None:
+        """The hourly housekeeping beside the commits, on its own connections: a slice of
+        tags at a time with a pause between slices, so that commits never wait for it."""
+        last = 0.0
+        while not self._stop.is_set():
+            if time.monotonic() - last > self.purge_every_s and self.stats.store_up:
+                last = time.monotonic()
                 with contextlib.suppress(Exception):
                     self._chores, self._purged = await self.store.tag_ids(), 0
-                last_purge = time.monotonic()
-            if self._chores and self.stats.store_up:
-                with contextlib.suppress(Exception):
-                    await self._housekeep_slice()
+            while self._chores and not self._stop.is_set():
+                if self.stats.store_up:
+                    with contextlib.suppress(Exception):
+                        await self._housekeep_slice()
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self._stop.wait(), self.housekeeping_pause_s)
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stop.wait(), self.commit_interval_s)
 
     def start(self) -> None:
-        self._task = asyncio.get_running_loop().create_task(self._run())
+        loop = asyncio.get_running_loop()
+        self._task = loop.create_task(self._run())
+        self._house_task = loop.create_task(self._housekeeping())
 
     async def stop(self) -> None:
         """Commit what is left (or keep it in the durable buffer) and stop."""
         self._stop.set()
+        if self._house_task is not None:
+            # idempotent work: a slice cut short is done again next hour
+            self._house_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._house_task
         if self._task is not None:
             await self._task
         self._next_try = 0.0
