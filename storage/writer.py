@@ -61,6 +61,7 @@ class SampleWriter:
         rollup_retention_s: float | None = None,
         housekeeping_slice: int = 200,
         housekeeping_pause_s: float = 0.2,
+        housekeeping_share: float = 0.2,
     ) -> None:
         self.store = store
         self.buffer = DurableBuffer(buffer_path, buffer_max_samples)
@@ -74,6 +75,9 @@ class SampleWriter:
         self.rollup_retention_s = rollup_retention_s
         self.housekeeping_slice = housekeeping_slice
         self.housekeeping_pause_s = housekeeping_pause_s
+        self.housekeeping_share = housekeeping_share
+        """Share of the time the housekeeping may keep the database busy (40,000 tags: about
+        10 minutes of every hour at a fifth of a connection)."""
         self._chores: list[int] = []
         """Tags still to housekeep this hour."""
         self._purged = 0
@@ -206,11 +210,16 @@ class SampleWriter:
                 with contextlib.suppress(Exception):
                     self._chores, self._purged = await self.store.tag_ids(), 0
             while self._chores and not self._stop.is_set():
+                t0 = time.monotonic()
                 if self.stats.store_up:
                     with contextlib.suppress(Exception):
                         await self._housekeep_slice()
+                # busy at most ``housekeeping_share`` of the time: the database serves the
+                # commits first
+                worked = time.monotonic() - t0
+                pause = max(self.housekeeping_pause_s, worked / self.housekeeping_share - worked)
                 with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(self._stop.wait(), self.housekeeping_pause_s)
+                    await asyncio.wait_for(self._stop.wait(), pause)
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._stop.wait(), self.commit_interval_s)
 
