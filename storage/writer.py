@@ -170,10 +170,6 @@ class SampleWriter:
             await purge_hours(self.store, now_us - int(self.rollup_retention_s * 1e6), tag_ids)
         return hours, deleted
 
-    async def housekeep_all(self) -> tuple[int, int]:
-        """All of the hourly housekeeping at once (every tag of the store)."""
-        return await self.housekeep(await self.store.tag_ids())
-
     async def _housekeep_slice(self) -> None:
         """One slice of the hourly housekeeping: a site of 40,000 tags takes minutes of it."""
         chunk, self._chores = (
