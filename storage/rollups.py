@@ -12,8 +12,9 @@ Every hour the ingest writer rolls up the complete hours of its own tags since e
 roll-up, re-reading the ``lookback`` before it so that samples a collector's store-and-forward
 buffer delivers late still count (later than that they are not rolled up again): one grouped
 range scan of the (tag_id, ts_us) key per tag, upserted, so two processes rolling up the same
-tag agree. Roll-ups older than ``rollup_retention_days`` (ten years by default) are deleted the
-same way, a key range per tag.
+tag agree. One statement per slice of tags finds which of them have anything to do, so an hour
+with nothing new costs a site no statement per tag. Roll-ups older than
+``rollup_retention_days`` (ten years by default) are deleted the same way, a key range per tag.
 """
 
 from __future__ import annotations
@@ -21,11 +22,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from sqlalchemy import and_, delete, func, select, text
+from sqlalchemy import and_, delete, select, text
 
 from plantcheck.core.status_codes import BAD
 from plantcheck.storage.schema import sample_hours, samples
-from plantcheck.storage.store import LoopRow, Store, signal_range
+from plantcheck.storage.store import LoopRow, Store, first_of_tags, signal_range
 
 HOUR_US = 3_600_000_000
 """One hour in µs: roll-ups start on whole hours since 1970 (UTC)."""
@@ -78,24 +79,23 @@ async def roll_up(
     ids = list(tag_ids) if tag_ids is not None else await store.tag_ids()
     written = 0
     for i in range(0, len(ids), TAGS_PER_TRANSACTION):
+        chunk = ids[i : i + TAGS_PER_TRANSACTION]
         async with store.engine.begin() as conn:
-            for tag in ids[i : i + TAGS_PER_TRANSACTION]:
-                last = (
-                    await conn.execute(
-                        select(func.max(sample_hours.c.hour_us)).where(sample_hours.c.tag_id == tag)
-                    )
-                ).scalar()
-                if last is None:
-                    first = (
-                        await conn.execute(
-                            select(func.min(samples.c.ts_us)).where(samples.c.tag_id == tag)
-                        )
-                    ).scalar()
-                    if first is None:
-                        continue
-                    start = int(first) // HOUR_US * HOUR_US
+            # two statements find where each tag of the chunk stands, so a tag with nothing
+            # new costs no statement of its own
+            last_hour = await first_of_tags(
+                conn, chunk, sample_hours.c.tag_id, sample_hours.c.hour_us, last=True
+            )
+            unrolled = [t for t in chunk if last_hour.get(t) is None]
+            first = await first_of_tags(conn, unrolled, samples.c.tag_id, samples.c.ts_us)
+            for tag in chunk:
+                last = last_hour.get(tag)
+                if last is not None:
+                    start = max(0, last + HOUR_US - lookback_us)
+                elif first.get(tag) is not None:
+                    start = int(first[tag] or 0) // HOUR_US * HOUR_US
                 else:
-                    start = max(0, int(last) + HOUR_US - lookback_us)
+                    continue
                 if start >= end:
                     continue
                 res = await conn.execute(_UPSERT, {"tag": tag, "lo": start, "hi": end})
@@ -109,7 +109,11 @@ async def purge_hours(store: Store, before_us: int, tag_ids: Iterable[int] | Non
     ids = list(tag_ids) if tag_ids is not None else await store.tag_ids()
     deleted = 0
     async with store.engine.begin() as conn:
+        oldest = await first_of_tags(conn, ids, sample_hours.c.tag_id, sample_hours.c.hour_us)
         for tag in ids:
+            first = oldest.get(tag)
+            if first is None or first >= before_us:
+                continue
             res = await conn.execute(
                 delete(sample_hours).where(
                     sample_hours.c.tag_id == tag, sample_hours.c.hour_us < before_us

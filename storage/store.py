@@ -81,6 +81,24 @@ class LoopRow:
     tags: dict[str, int]
 
 
+async def first_of_tags(
+    conn: AsyncConnection,
+    tag_ids: Sequence[int],
+    tag_col: ColumnElement[int],
+    time_col: ColumnElement[int],
+    *,
+    last: bool = False,
+) -> dict[int, int | None]:
+    """The first (or ``last``) time of each of ``tag_ids`` in the table of ``tag_col`` and
+    ``time_col`` (None: the tag has no row), in one statement: a correlated subquery per tag,
+    which SQLite and PostgreSQL both answer from the (tag_id, time) key without a scan."""
+    edge = func.max(time_col) if last else func.min(time_col)
+    q = select(tags.c.id, select(edge).where(tag_col == tags.c.id).scalar_subquery()).where(
+        tags.c.id.in_(list(tag_ids))
+    )
+    return {int(t): (None if v is None else int(v)) for t, v in (await conn.execute(q)).all()}
+
+
 def signal_range(
     loop: LoopRow,
     signals: Sequence[str] | None,
@@ -525,7 +543,13 @@ class Store:
         ids = list(tag_ids) if tag_ids is not None else await self.tag_ids()
         deleted = 0
         async with self.engine.begin() as conn:
+            # one look at every tag's oldest sample first: most tags of a slice have nothing to
+            # delete, and a statement per tag costs the ingest process CPU it needs for commits
+            oldest = await first_of_tags(conn, ids, samples.c.tag_id, samples.c.ts_us)
             for tag_id in ids:
+                first = oldest.get(tag_id)
+                if first is None or first >= before_us:
+                    continue
                 res = await conn.execute(older, {"tag": tag_id})
                 deleted += int(res.rowcount or 0)
         return deleted
