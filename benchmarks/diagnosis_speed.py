@@ -18,6 +18,7 @@ import time
 from dataclasses import replace
 
 from plantcheck.diagnosis import diagnose
+from plantcheck.service.allocator import tune_allocator
 from plantcheck.simulator.cases import sticky_flow_config
 from plantcheck.simulator.loop import simulate_loop
 
@@ -46,6 +47,8 @@ def _median_ms(pv: object, op: object, sp: object, quantify: bool, repeat: int) 
 
 
 def main() -> None:
+    # as every plantcheck process that diagnoses does (service/allocator.py)
+    tune_allocator()
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=30)
     args = ap.parse_args()

@@ -18,11 +18,14 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from plantcheck.diagnosis.oscillation import detect_oscillation  # noqa: E402
 from plantcheck.diagnosis.quantification import quantify_stiction  # noqa: E402
+from plantcheck.service.allocator import tune_allocator  # noqa: E402
 from plantcheck.simulator.cases import sticky_flow_config  # noqa: E402
 from plantcheck.simulator.loop import simulate_loop  # noqa: E402
 
 
 def main() -> None:
+    # as every plantcheck process that diagnoses does (service/allocator.py)
+    tune_allocator()
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=10)
     args = ap.parse_args()

@@ -15,13 +15,13 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import lfilter
 
 from plantcheck.diagnosis.acf_regularity import RegularityResult, thornhill_regularity
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     bandpass,
     detrend,
+    first_order_recursion,
     half_cycles,
     moving_average,
     noise_sigma,
@@ -156,7 +156,7 @@ def hagglund_loads(
     impulses = np.zeros(e.size)
     impulses[np.clip(loads, 0, e.size - 1)] = 1.0
     gamma = max(0.0, 1.0 - ts / tsup_s)
-    counter = lfilter([1.0], [1.0, -gamma], impulses)
+    counter = first_order_recursion(impulses, gamma)
     return HagglundResult(int(loads.size), float(counter.max(initial=0.0)), hc.count)
 
 

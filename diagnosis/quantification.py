@@ -50,21 +50,14 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import butter, iirnotch, lfilter, sosfilt, tf2sos
 
-try:
-    # lfilter's own kernel: lfilter's array-API dispatch costs ~20 µs a call, 40 % of one row's
-    # simulation, and a window simulates thousands of rows (same arguments, same result)
-    from scipy.signal._sigtools import _linear_filter as _iir_filter
-except ImportError:  # pragma: no cover - a SciPy that moved its private kernel
-    _iir_filter = lfilter
-try:
-    # sosfilt's own kernel, in place: sosfilt copies its input first, a third of its time on
-    # the thousands of valve rows a window filters (same arguments, same result)
-    from scipy.signal._sosfilt import _sosfilt
-except ImportError:  # pragma: no cover - a SciPy that moved its private kernel
-    _sosfilt = None
-
+from plantcheck.diagnosis.iir_kernels import (
+    butterworth_sos,
+    filter_rows,
+    iir_filter,
+    notch_sos,
+    sos_filter,
+)
 from plantcheck.diagnosis.oscillation import faster_oscillation
 from plantcheck.diagnosis.quantification_rules import Evidence, refusals
 from plantcheck.diagnosis.signal_tools import FloatArray, moving_average
@@ -312,9 +305,10 @@ def _simulation_errors(
     w = v - v[:, :1]
     sse = np.empty(n_p)
     n = v.shape[1]
+    kernel = iir_filter()
     for i in range(n_p):
         d = int(delay[i])  # the delay as a shift of the input (warm >= d), not as zero taps
-        err = y[warm:] - offset[i] - _iir_filter(b[i], a[i], w[i, : n - d], -1)[warm - d :]
+        err = y[warm:] - offset[i] - kernel(b[i], a[i], w[i, : n - d], -1)[warm - d :]
         sse[i] = err @ err
     return sse
 
@@ -366,10 +360,10 @@ def band_prefilter(f_lo: float, f_hi: float, highpass_order: int = 4) -> Prefilt
     numerically fragile as one transfer function."""
     lo = min(max(2.0 * f_lo, 1e-4), 0.9)
     hi = 2.0 * f_hi
-    sos = butter(highpass_order, lo, btype="highpass", output="sos")
+    sos = butterworth_sos(highpass_order, lo, btype="highpass")
     if lo * 1.5 < hi < 0.95:
-        sos = np.vstack([sos, butter(2, hi, output="sos")])
-    return np.asarray(sos, dtype=np.float64)
+        sos = np.vstack([sos, butterworth_sos(2, hi)])
+    return sos
 
 
 def slow_line(u: FloatArray, max_frequency: float, prominence: float = 30.0) -> float | None:
@@ -398,15 +392,6 @@ def slow_line(u: FloatArray, max_frequency: float, prominence: float = 30.0) -> 
     if not around.any() or power[k] < prominence * float(np.median(power[around])):
         return None
     return float(freq[k])
-
-
-def _filter_rows(sos: Prefilter, x: FloatArray) -> FloatArray:
-    """Each row of ``x`` (a C-contiguous float64 temporary, overwritten) through the
-    second-order sections ``sos`` from rest."""
-    if _sosfilt is None:  # pragma: no cover
-        return np.asarray(sosfilt(sos, x, axis=1), dtype=np.float64)
-    _sosfilt(np.ascontiguousarray(sos), x, np.zeros((x.shape[0], sos.shape[0], 2)))
-    return x
 
 
 @dataclass(frozen=True)
@@ -465,7 +450,7 @@ def _valves(
     vt = v.T  # time along the first axis: the grids' own memory layout, one pass
     moves = np.count_nonzero(vt[1:] != vt[:-1], axis=0)
     # the same linear filter on both sides keeps PV = G·v and removes slow load drift and noise
-    vf = _filter_rows(prob.prefilter, _rows_from_start(v))
+    vf = filter_rows(prob.prefilter, _rows_from_start(v))
     vf[moves < prob.min_moves] = np.nan
     return np.asarray(vf, dtype=np.float64)
 
@@ -749,12 +734,12 @@ def quantify_stiction(
         # the detected oscillation was not the valve's cycle: it is the external one
         line = ts / dominant_s
     if line is not None:
-        pf = np.vstack([pf, tf2sos(*iirnotch(line, p.notch_q, fs=1.0))])
+        pf = np.vstack([pf, notch_sos(line, p.notch_q)])
     # The Kano valve starts stuck with its break band at the first sample's edge facing the
     # bulk of the OP: it breaks free the first time the OP passes u0 that way, and so never
     # locks (from BDSIM's centred band a valve with S + J above the OP range never moves).
     kano_phase = 0.0 if u[0] <= float(np.median(u)) else 1.0
-    prob = _Problem(u, sosfilt(pf, y - y[0]), pf, p.min_moves, max_delay, kano_phase)
+    prob = _Problem(u, sos_filter(pf, y - y[0]), pf, p.min_moves, max_delay, kano_phase)
     s_max = p.s_max_fraction * float(np.ptp(u))
     excursion = op_excursion(u, period_samples)
     s_hi = min(s_max, p.grid_high * excursion)

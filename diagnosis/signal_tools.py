@@ -6,11 +6,12 @@ times are in seconds only where a sample time ``ts`` is passed explicitly.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import fft as sp_fft
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -30,6 +31,24 @@ def detrend(x: FloatArray) -> FloatArray:
     return np.asarray(xc - slope * t, dtype=np.float64)
 
 
+@lru_cache(maxsize=64)
+def fast_fft_length(n: int) -> int:
+    """Smallest 2**a·3**b·5**c >= ``n``: a length pocketfft transforms fast
+    (``scipy.fft.next_fast_len(n, real=True)``, without importing ``scipy.fft``)."""
+    best = 1 << max(0, (n - 1).bit_length())
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            q = p35
+            while q < n:
+                q *= 2
+            best = min(best, q)
+            p35 *= 3
+        p5 *= 5
+    return best
+
+
 def fft_acf(x: FloatArray, max_lag: int | None = None) -> FloatArray:
     """Normalised (biased) autocorrelation of mean-removed ``x`` via FFT, ``acf[0] = 1``.
 
@@ -38,9 +57,9 @@ def fft_acf(x: FloatArray, max_lag: int | None = None) -> FloatArray:
     n = x.size
     max_lag = n // 2 if max_lag is None else min(max_lag, n)
     xc = x - x.mean()
-    nfft = sp_fft.next_fast_len(2 * n, real=True)
-    spec = sp_fft.rfft(xc, nfft)
-    acf = sp_fft.irfft(spec.real**2 + spec.imag**2, nfft)[:max_lag]
+    nfft = fast_fft_length(2 * n)
+    spec = np.fft.rfft(xc, nfft)
+    acf = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[:max_lag]
     if acf[0] <= 0:
         return np.zeros(max_lag)
     return np.asarray(acf / acf[0], dtype=np.float64)
@@ -54,8 +73,8 @@ def fft_ccf(u: FloatArray, y: FloatArray, max_lag: int) -> tuple[IntArray, Float
     n = u.size
     uc = u - u.mean()
     yc = y - y.mean()
-    nfft = sp_fft.next_fast_len(2 * n, real=True)
-    cross = sp_fft.irfft(np.conj(sp_fft.rfft(uc, nfft)) * sp_fft.rfft(yc, nfft), nfft)
+    nfft = fast_fft_length(2 * n)
+    cross = np.fft.irfft(np.conj(np.fft.rfft(uc, nfft)) * np.fft.rfft(yc, nfft), nfft)
     denom = n * uc.std() * yc.std()
     lags = np.arange(-max_lag, max_lag + 1)
     vals = cross[lags % nfft] / denom if denom > 0 else np.zeros(lags.size)
@@ -88,16 +107,99 @@ def moving_average(x: FloatArray, width: int) -> FloatArray:
     return np.asarray((c[hi] - c[lo]) / (hi - lo), dtype=np.float64)
 
 
+@lru_cache(maxsize=32)
+def _growth(poles: tuple[float, ...], size: int) -> FloatArray:
+    """a**-k for each pole a (rows) and k = 0 .. size - 1, correctly rounded (read-only:
+    shared between calls, as the chain filters with the same few poles window after window)."""
+    a = np.asarray(poles, dtype=np.float64)[:, None]
+    grow = np.power(a, -np.arange(size, dtype=np.float64))
+    grow.flags.writeable = False
+    return grow
+
+
+def first_order_recursions(
+    x: FloatArray,
+    poles: Sequence[float],
+    gains: Sequence[float],
+    out: FloatArray | None = None,
+    offset: float = 0.0,
+) -> FloatArray:
+    """Rows y[k] = a·y[k-1] + gain·x[k] from rest (y[-1] = 0), plus ``offset``, one per pole
+    0 < a < 1: what ``scipy.signal.lfilter([gain], [1, -a], x) + offset`` returns, to
+    rounding, without importing ``scipy.signal`` (half a second: issue 29). Written into
+    ``out`` (rows x samples) when given.
+
+    Closed form over blocks: within a block y[k] = a**k·(a·y0 + gain·Σ_{j<=k} a**-j·x[j]),
+    the block short enough that a**-k stays far from overflow (e**600). Temporaries are
+    block-sized: window-sized ones cost fresh pages (page faults) on every call.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    a = np.asarray(poles, dtype=np.float64)[:, None]
+    g = np.asarray(gains, dtype=np.float64)[:, None]
+    block = max(1, int(600.0 / -np.log(float(a.min()))))
+    grow = _growth(tuple(float(v) for v in a[:, 0]), min(block, x.size))
+    y = np.empty((a.shape[0], x.size)) if out is None else out
+    carry = np.zeros((a.shape[0], 1))
+    for start in range(0, x.size, block):
+        seg = x[start : start + block]
+        gr = grow[:, : seg.size]
+        part = np.cumsum(gr * seg, axis=1)
+        part *= g
+        part += a * carry
+        part /= gr
+        carry = part[:, -1:].copy()
+        if offset:
+            part += offset
+        y[:, start : start + seg.size] = part
+    return y
+
+
+def first_order_recursion(x: FloatArray, a: float, gain: float = 1.0) -> FloatArray:
+    """y[k] = a·y[k-1] + gain·x[k] from rest (y[-1] = 0), 0 <= a < 1
+    (``first_order_recursions`` with one pole)."""
+    x = np.asarray(x, dtype=np.float64)
+    if a <= 0.0:
+        return gain * x
+    return np.asarray(first_order_recursions(x, (a,), (gain,))[0], dtype=np.float64)
+
+
+def first_order_lags(x: FloatArray, poles: Sequence[float]) -> FloatArray:
+    """Unit-gain first-order lags y[k] = a·y[k-1] + (1 - a)·x[k] started at rest at ``x[0]``
+    (pole a = exp(-ts/τ); a = 0 passes ``x`` through), one row per pole."""
+    x = np.asarray(x, dtype=np.float64)
+    out = np.empty((len(poles), x.size))
+    lagging = [i for i, a in enumerate(poles) if a > 0.0]
+    for i, a in enumerate(poles):
+        if a <= 0.0:
+            out[i] = x
+    if not lagging or x.size == 0:
+        return out
+    a_l = [poles[i] for i in lagging]
+    gains = [1.0 - v for v in a_l]
+    if lagging == list(range(lagging[0], lagging[-1] + 1)):
+        rows = out[lagging[0] : lagging[-1] + 1]  # a view: written in place
+        first_order_recursions(x - x[0], a_l, gains, rows, float(x[0]))
+    else:
+        out[lagging] = first_order_recursions(x - x[0], a_l, gains, offset=float(x[0]))
+    return out
+
+
+def first_order_lag(x: FloatArray, a: float) -> FloatArray:
+    """Unit-gain first-order lag y[k] = a·y[k-1] + (1 - a)·x[k] started at rest at ``x[0]``
+    (pole ``a`` = exp(-ts/τ))."""
+    return np.asarray(first_order_lags(x, (a,))[0], dtype=np.float64)
+
+
 def bandpass(x: FloatArray, ts: float, f_lo: float, f_hi: float) -> FloatArray:
     """Zero-phase band-pass by zeroing FFT bins outside [f_lo, f_hi] Hz (Wiener-type filter).
 
     Choudhury, Shah & Thornhill (2006) use this non-causal filter before ellipse fitting.
     """
     n = x.size
-    spec = sp_fft.rfft(x - x.mean())
-    f = sp_fft.rfftfreq(n, ts)
+    spec = np.fft.rfft(x - x.mean())
+    f = np.fft.rfftfreq(n, ts)
     spec[(f < f_lo) | (f > f_hi)] = 0.0
-    return np.asarray(sp_fft.irfft(spec, n), dtype=np.float64)
+    return np.asarray(np.fft.irfft(spec, n), dtype=np.float64)
 
 
 def hysteresis_sign(x: FloatArray, band: float) -> NDArray[np.int8]:

@@ -35,9 +35,15 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import find_peaks, lfilter
 
-from plantcheck.diagnosis.signal_tools import FloatArray, IntArray, moving_average, noise_sigma
+from plantcheck.diagnosis.peaks import peaks_apart, prominent_extremes
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    IntArray,
+    first_order_lags,
+    moving_average,
+    noise_sigma,
+)
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult, Verdict
 
 
@@ -169,8 +175,7 @@ def _resolution(x: FloatArray) -> float:
 
 def _turning_points(x: FloatArray, prominence: float) -> IntArray:
     """Alternating maxima and minima of ``x`` with at least ``prominence`` (indices, sorted)."""
-    hi, _ = find_peaks(x, prominence=prominence)
-    lo, _ = find_peaks(-x, prominence=prominence)
+    hi, lo = prominent_extremes(x, prominence)
     idx = np.concatenate([hi, lo])
     kind = np.concatenate([np.ones(hi.size, np.int8), -np.ones(lo.size, np.int8)])
     order = np.argsort(idx)
@@ -214,14 +219,6 @@ LAG_GRID = (0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
 """Process time constants tried by the two local models, samples (0: no lag)."""
 DELAY_GRID = (0, 1, 2, 4, 8)
 """Process dead times tried by the linear model, samples."""
-
-
-def _lagged(x: FloatArray, tau: float) -> FloatArray:
-    """First-order lag with time constant ``tau`` samples, starting at rest at ``x[0]``."""
-    if tau <= 0:
-        return x
-    a = math.exp(-1.0 / tau)
-    return np.asarray(lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0], dtype=np.float64)
 
 
 def _detrended(x: FloatArray) -> FloatArray:
@@ -270,7 +267,8 @@ class _Dynamics:
         k = np.arange(op.size + 8, dtype=np.float64)
         with np.errstate(divide="ignore"):
             rise = np.where(taus > 0, 1.0 - np.exp(-(k + 1.0) / np.where(taus > 0, taus, 1.0)), 1.0)
-        return cls(np.stack([_lagged(padded, tau) for tau in LAG_GRID]), rise, pad)
+        poles = [math.exp(-1.0 / tau) if tau > 0 else 0.0 for tau in LAG_GRID]
+        return cls(first_order_lags(padded, poles), rise, pad)
 
 
 def _slip_evidence(
@@ -388,7 +386,7 @@ def _jump_phases(
     toward = np.sign(sig.cum_e[k + 1] - sig.cum_e[lo])
     move = toward * (sig.ys[h:] - sig.ys[:-h])
     floor = max(p.slip_sigma * sig.sigma_y, p.slip_resolution * sig.res)
-    peaks, _ = find_peaks(move, height=floor, distance=h)
+    peaks = peaks_apart(move, floor, h)
     out = []
     largest = peaks[np.argsort(-move[peaks], kind="stable")][: 2 * p.max_model_candidates]
     for a in largest.tolist():

@@ -14,9 +14,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
 
-from plantcheck.diagnosis.signal_tools import FloatArray, fft_acf, noise_sigma
+from plantcheck.diagnosis.signal_tools import FloatArray, fft_acf, first_order_lag, noise_sigma
 
 
 @dataclass(frozen=True)
@@ -104,9 +103,7 @@ def lowpass(x: FloatArray, ts: float, tf_s: float) -> FloatArray:
     """First-order low-pass with time constant ``tf_s`` seconds (exact discretisation)."""
     if tf_s <= 0:
         return x
-    a = math.exp(-ts / tf_s)
-    y = lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0]
-    return np.asarray(y, dtype=np.float64)
+    return first_order_lag(x, math.exp(-ts / tf_s))
 
 
 def idle_index(

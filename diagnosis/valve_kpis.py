@@ -20,9 +20,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal
 
-from plantcheck.diagnosis.signal_tools import FloatArray, fft_ccf, moving_average, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    fft_ccf,
+    first_order_lag,
+    moving_average,
+    noise_sigma,
+)
 
 VALVE_STATES = (
     "ok",
@@ -114,9 +119,7 @@ def _first_order_lag(x: FloatArray, tau: float, ts: float) -> FloatArray:
     """``x`` through a unit-gain first-order lag of time constant ``tau`` (s), started at rest."""
     if tau <= 0.0:
         return x
-    a = float(np.exp(-ts / tau))
-    y, _ = signal.lfilter([1.0 - a], [1.0, -a], x, zi=[a * float(x[0])])
-    return np.asarray(y, dtype=np.float64)
+    return first_order_lag(x, float(np.exp(-ts / tau)))
 
 
 def _power_spectra(x: FloatArray, segment: int) -> FloatArray:

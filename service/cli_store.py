@@ -18,7 +18,9 @@ from plantcheck.storage.errors import StorageError
 if TYPE_CHECKING:
     from plantcheck.service.config import Config
 
-db_app = typer.Typer(help="Database schema (Alembic migrations).", no_args_is_help=True)
+db_app = typer.Typer(
+    help="Database schema (Alembic migrations).", no_args_is_help=True, rich_markup_mode=None
+)
 
 ConfigOpt = Annotated[
     Path | None, typer.Option("--config", help="Service configuration (default plantcheck.toml).")

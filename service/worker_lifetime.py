@@ -13,6 +13,8 @@ import os
 import threading
 import time
 
+from plantcheck.service.allocator import tune_allocator
+
 PARENT_POLL_S = 0.5
 """How often a worker checks that the service still runs (s): the longest it outlives it."""
 
@@ -25,7 +27,9 @@ def _watch_parent(parent: int, poll_s: float) -> None:
 
 
 def die_with_parent(parent: int, poll_s: float = PARENT_POLL_S) -> None:
-    """Worker initializer: exit as soon as process ``parent`` (the service) is gone."""
+    """Worker initializer: exit as soon as process ``parent`` (the service) is gone; keep
+    the diagnosis's window-sized temporaries in the heap (``allocator``)."""
+    tune_allocator()
     if os.getppid() != parent:
         os._exit(0)
     threading.Thread(

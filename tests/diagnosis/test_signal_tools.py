@@ -5,8 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from plantcheck.diagnosis.signal_tools import (
+    fast_fft_length,
     fft_acf,
     fft_ccf,
+    first_order_lag,
+    first_order_lags,
+    first_order_recursion,
     first_peaks,
     half_cycles,
     noise_sigma,
@@ -74,3 +78,31 @@ def test_noise_sigma_ignores_slow_oscillation() -> None:
     t = np.arange(5000)
     x = 5 * np.sin(2 * np.pi * t / 300) + 0.3 * rng.normal(size=t.size)
     assert abs(noise_sigma(x) - 0.3) < 0.03
+
+
+def test_first_order_recursions_match_lfilter() -> None:
+    """The numpy recursion equals ``scipy.signal.lfilter`` to rounding, over the poles the
+    chain uses (fast lags to the Hägglund load counter's slow decay) and long windows."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(4)
+    for n in (1, 7, 3600, 86400):
+        x = rng.normal(size=n).cumsum() + 100.0
+        for a in (1e-9, 0.05, 0.37, 0.9, 0.999, 0.99999):
+            expected = lfilter([1.0 - a], [1.0, -a], x - x[0]) + x[0]
+            assert np.allclose(first_order_lag(x, a), expected, rtol=1e-10, atol=0.0)
+            assert np.allclose(
+                first_order_recursion(x, a), lfilter([1.0], [1.0, -a], x), rtol=1e-10
+            )
+    poles = [0.0, 0.37, 0.6, 0.97]
+    x = rng.normal(size=500)
+    rows = first_order_lags(x, poles)
+    assert np.array_equal(rows[0], x)
+    for row, a in zip(rows[1:], poles[1:], strict=True):
+        assert np.allclose(row, first_order_lag(x, a), rtol=1e-12)
+
+
+def test_fast_fft_length_is_the_next_5_smooth_number() -> None:
+    from scipy.fft import next_fast_len
+
+    assert all(fast_fft_length(n) == next_fast_len(n, real=True) for n in range(1, 5000))
