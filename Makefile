@@ -44,8 +44,9 @@ system-deps:
 	  fi; \
 	fi
 
+# PYTEST_ARGS narrows the run (the set-up test runs `make test` in a scratch clone on a few tests)
 pytest: venv system-deps
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q $(PYTEST_ARGS)
 
 test: lint typecheck pytest
 

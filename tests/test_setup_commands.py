@@ -1,0 +1,132 @@
+"""The README's two set-up commands, in the order written, in a scratch clone (issue 29):
+command 1 makes ``.venv`` with a plain ``pip install .`` and runs the demo; command 2,
+``make test``, must then install the development tools into that same ``.venv`` and pass.
+
+Tests reach no network: pip installs from a local wheelhouse repacked from this test's own
+environment (every installed distribution, as the wheel it was installed from), with
+``PIP_NO_INDEX``. The demo runs 20 s on a free port; ``make test`` runs the linters, mypy and
+the tests of ``tests/core`` (``PYTEST_ARGS``: the whole suite already runs around this test).
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import hashlib
+import io
+import os
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+from helpers import free_port
+
+ROOT = Path(__file__).resolve().parents[1]
+SKIPPED_FILES = ("INSTALLER", "REQUESTED", "direct_url.json", "RECORD")
+
+
+def _readme_commands() -> tuple[str, str]:
+    """The two commands of the README's set-up block (the lines that are not comments)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = re.search(r"## Set up.*?```sh\n(.*?)```", text, re.S)
+    assert block, "README has no set-up block"
+    lines = [ln for ln in block.group(1).splitlines() if ln.strip() and not ln.startswith("#")]
+    assert len(lines) == 2, f"README's set-up block should hold two commands: {lines}"
+    return lines[0], lines[1]
+
+
+def _digest(data: bytes) -> str:
+    return "sha256=" + base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
+
+
+def _repack(dist: metadata.Distribution, into: Path) -> Path | None:
+    """``dist`` as a wheel again (its files from RECORD, a fresh RECORD; scripts are left to
+    pip, which writes them from entry_points.txt), or None when it cannot be."""
+    files = dist.files
+    info = dist.read_text("WHEEL")
+    if not files or info is None:
+        return None
+    tags = re.findall(r"^Tag: (\S+)$", info, re.M) or ["py3-none-any"]
+    name = re.sub(r"[-_.]+", "_", dist.metadata["Name"])
+    wheel = into / f"{name}-{dist.version}-{tags[0]}.whl"
+    record = io.StringIO()
+    writer = csv.writer(record, lineterminator="\n")
+    dist_info = None
+    with zipfile.ZipFile(wheel, "w", zipfile.ZIP_STORED) as zf:
+        for f in files:
+            rel = f.as_posix()
+            if rel.startswith("..") or "__pycache__" in rel:
+                continue
+            if rel.split("/")[0].endswith(".dist-info"):
+                dist_info = rel.split("/")[0]
+                if rel.split("/")[-1] in SKIPPED_FILES:
+                    continue
+            path = Path(str(dist.locate_file(f)))
+            if not path.is_file():
+                continue
+            data = path.read_bytes()
+            zf.writestr(rel, data)
+            writer.writerow([rel, _digest(data), len(data)])
+        if dist_info is None:
+            return None
+        writer.writerow([f"{dist_info}/RECORD", "", ""])
+        zf.writestr(f"{dist_info}/RECORD", record.getvalue())
+    return wheel
+
+
+def _wheelhouse(into: Path) -> None:
+    """Every distribution installed in this environment but plantcheck, as a wheel."""
+    into.mkdir()
+    for dist in metadata.distributions():
+        if dist.metadata["Name"].lower() != "plantcheck":
+            _repack(dist, into)
+
+
+@pytest.mark.slow
+def test_readme_commands_work_in_the_order_written(tmp_path: Path) -> None:
+    if shutil.which("git") is None or shutil.which("make") is None:
+        pytest.skip("needs git and make")
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout: nothing to clone")
+    first, second = _readme_commands()
+    assert second.strip() == "make test"
+    clone = tmp_path / "plantcheck"
+    subprocess.run(["git", "clone", "--quiet", str(ROOT), str(clone)], check=True)
+    _wheelhouse(tmp_path / "wheels")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PIP_", "VIRTUAL_ENV"))}
+    env |= {
+        "PIP_NO_INDEX": "1",
+        "PIP_FIND_LINKS": str(tmp_path / "wheels"),
+        "PIP_DISABLE_PIP_VERSION_CHECK": "1",
+        "PATH": os.pathsep.join(
+            p for p in env.get("PATH", "").split(os.pathsep) if not p.startswith(sys.prefix)
+        ),
+    }
+    port = free_port()
+    one = subprocess.run(
+        ["bash", "-c", f"{first} --port {port} --duration 20"],
+        cwd=clone,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert one.returncode == 0, f"command 1 failed:\n{one.stdout[-3000:]}\n{one.stderr[-3000:]}"
+    assert (clone / ".venv" / "bin" / "plantcheck").exists()
+    assert f"http://127.0.0.1:{port}/" in one.stdout + one.stderr
+    two = subprocess.run(
+        ["make", "test", "PYTEST_ARGS=tests/core"],
+        cwd=clone,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )
+    assert two.returncode == 0, f"command 2 failed:\n{two.stdout[-3000:]}\n{two.stderr[-3000:]}"
+    assert (clone / ".venv" / "bin" / "ruff").exists()
+    assert " passed" in two.stdout
