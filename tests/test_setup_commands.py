@@ -51,9 +51,13 @@ def _repack(dist: metadata.Distribution, into: Path) -> Path | None:
     info = dist.read_text("WHEEL")
     if not files or info is None:
         return None
-    tags = re.findall(r"^Tag: (\S+)$", info, re.M) or ["py3-none-any"]
+    tags = [t.split("-") for t in re.findall(r"^Tag: (\S+)$", info, re.M)] or [
+        ["py3", "none", "any"]
+    ]
+    # the compressed tag set of the file name: py2.py3-none-any
+    tag = "-".join(".".join(dict.fromkeys(t[i] for t in tags)) for i in range(3))
     name = re.sub(r"[-_.]+", "_", dist.metadata["Name"])
-    wheel = into / f"{name}-{dist.version}-{tags[0]}.whl"
+    wheel = into / f"{name}-{dist.version}-{tag}.whl"
     record = io.StringIO()
     writer = csv.writer(record, lineterminator="\n")
     dist_info = None
