@@ -58,22 +58,37 @@ def _repack(dist: metadata.Distribution, into: Path) -> Path | None:
     tag = "-".join(".".join(dict.fromkeys(t[i] for t in tags)) for i in range(3))
     name = re.sub(r"[-_.]+", "_", dist.metadata["Name"])
     wheel = into / f"{name}-{dist.version}-{tag}.whl"
+    prefix = Path(sys.prefix).resolve()
+    scripts = prefix / "bin"
+    entry_points = {ep.name for ep in dist.entry_points if ep.group.endswith("_scripts")}
+    data_dir = f"{name}-{dist.version}.data"
     record = io.StringIO()
     writer = csv.writer(record, lineterminator="\n")
     dist_info = None
     with zipfile.ZipFile(wheel, "w", zipfile.ZIP_STORED) as zf:
         for f in files:
             rel = f.as_posix()
-            if rel.startswith("..") or "__pycache__" in rel:
+            if "__pycache__" in rel:
                 continue
-            if rel.split("/")[0].endswith(".dist-info"):
-                dist_info = rel.split("/")[0]
-                if rel.split("/")[-1] in SKIPPED_FILES:
-                    continue
-            path = Path(str(dist.locate_file(f)))
+            path = Path(str(dist.locate_file(f))).resolve()
             if not path.is_file():
                 continue
             data = path.read_bytes()
+            if rel.startswith(".."):
+                # outside site-packages: a script (bin/) or data under the prefix; console
+                # scripts are left to pip, which writes them from entry_points.txt
+                if path.parent == scripts and path.name not in entry_points:
+                    if data.startswith(b"#!") and b"python" in data.split(b"\n", 1)[0]:
+                        data = b"#!python\n" + data.split(b"\n", 1)[1]
+                    rel = f"{data_dir}/scripts/{path.name}"
+                elif path.is_relative_to(prefix) and path.parent != scripts:
+                    rel = f"{data_dir}/data/{path.relative_to(prefix).as_posix()}"
+                else:
+                    continue
+            elif rel.split("/")[0].endswith(".dist-info"):
+                dist_info = rel.split("/")[0]
+                if rel.split("/")[-1] in SKIPPED_FILES:
+                    continue
             zf.writestr(rel, data)
             writer.writerow([rel, _digest(data), len(data)])
         if dist_info is None:
