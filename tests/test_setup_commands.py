@@ -89,7 +89,9 @@ def _repack(dist: metadata.Distribution, into: Path) -> Path | None:
                 dist_info = rel.split("/")[0]
                 if rel.split("/")[-1] in SKIPPED_FILES:
                     continue
-            zf.writestr(rel, data)
+            entry = zipfile.ZipInfo(rel)
+            entry.external_attr = (path.stat().st_mode & 0xFFFF) << 16  # keeps the x bit
+            zf.writestr(entry, data)
             writer.writerow([rel, _digest(data), len(data)])
         if dist_info is None:
             return None
