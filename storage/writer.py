@@ -187,9 +187,13 @@ class SampleWriter:
 
     async def _run(self) -> None:
         last_checkpoint = time.monotonic()
+        # commits on a fixed cadence: waiting a whole interval after each commit would add the
+        # commit's own time to every sample's wait (ingest lag, issue 28)
+        due = time.monotonic()
         while not self._stop.is_set():
+            due = max(due + self.commit_interval_s, time.monotonic())
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._stop.wait(), self.commit_interval_s)
+                await asyncio.wait_for(self._stop.wait(), due - time.monotonic())
             await self.flush()
             if time.monotonic() - last_checkpoint > self.checkpoint_every_s and self.stats.store_up:
                 with contextlib.suppress(Exception):
