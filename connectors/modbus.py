@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Collection, Sequence
+from collections.abc import AsyncIterator, Collection, Sequence
 from dataclasses import dataclass
 
 from pymodbus.client import AsyncModbusTcpClient
@@ -139,10 +139,10 @@ class ModbusConnector(DeviceConnector):
         if not await self.client.connect():
             raise ConnectionError(f"cannot connect to {self.host}:{self.port}")
 
-    async def read_once(self) -> list[Sample]:
-        """Read every block once (raises on time-out or lost connection)."""
+    async def read_blocks(self) -> AsyncIterator[list[Sample]]:
+        """Read every block once, yielding each block's samples as it arrives (raises on
+        time-out or lost connection)."""
         assert self.client is not None
-        out: list[Sample] = []
         for b in self.blocks:
             read = (
                 self.client.read_holding_registers
@@ -157,18 +157,18 @@ class ModbusConnector(DeviceConnector):
             t1 = time.time_ns()
             ts = (t0 + t1) // 2000
             if r.isError():
-                out += [Sample(t.tag_id, ts, t1 // 1000, None, BAD_DEVICE_FAILURE) for t in b.tags]
+                yield [Sample(t.tag_id, ts, t1 // 1000, None, BAD_DEVICE_FAILURE) for t in b.tags]
             else:
-                out += decode_block(
-                    b, r.registers, ts, t1 // 1000, self.word_order, self.byte_order
-                )
-        return out
+                yield decode_block(b, r.registers, ts, t1 // 1000, self.word_order, self.byte_order)
 
     async def collect(self) -> None:
         period = self.poll_interval_s
         next_t = time.monotonic()
         while True:
-            self.emit(await self.read_once())
+            # each block goes to the writer as it arrives: a device of thousands of tags takes
+            # a good part of a second to poll, and its first blocks would wait for the last
+            async for block in self.read_blocks():
+                self.emit(block)
             next_t += period
             now = time.monotonic()
             if next_t < now:  # late: skip missed polls instead of bursting
