@@ -129,25 +129,16 @@ def test_readme_commands_work_in_the_order_written(tmp_path: Path) -> None:
         ),
     }
     port = free_port()
-    one = subprocess.run(
-        ["bash", "-c", f"{first} --port {port} --duration 20"],
-        cwd=clone,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    assert one.returncode == 0, f"command 1 failed:\n{one.stdout[-3000:]}\n{one.stderr[-3000:]}"
+    one = _run(["bash", "-c", f"{first} --port {port} --duration 20"], clone, env, "command 1")
     assert (clone / ".venv" / "bin" / "plantcheck").exists()
-    assert f"http://127.0.0.1:{port}/" in one.stdout + one.stderr
-    two = subprocess.run(
-        ["make", "test", "PYTEST_ARGS=tests/core"],
-        cwd=clone,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=1800,
-    )
-    assert two.returncode == 0, f"command 2 failed:\n{two.stdout[-3000:]}\n{two.stderr[-3000:]}"
+    assert f"http://127.0.0.1:{port}/" in one
+    two = _run(["make", "test", "PYTEST_ARGS=tests/core"], clone, env, "command 2")
     assert (clone / ".venv" / "bin" / "ruff").exists()
-    assert " passed" in two.stdout
+    assert " passed" in two
+
+
+def _run(args: list[str], cwd: Path, env: dict[str, str], what: str) -> str:
+    """Run one set-up command to its end (30 minutes at most); its output."""
+    done = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, f"{what} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    return done.stdout + done.stderr
