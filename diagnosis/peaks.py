@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.signal_tools import FloatArray, segment_min
 
 IntArray = NDArray[np.int64]
 
@@ -31,6 +31,15 @@ class _Runs(NamedTuple):
     starts: IntArray
     ends: IntArray
     level: FloatArray
+
+    def middles(self, runs: IntArray) -> IntArray:
+        """The middle sample of each of ``runs`` (rounded down, as SciPy places a flat top)."""
+        return np.asarray((self.starts[runs] + self.ends[runs]) // 2, dtype=np.int64)
+
+    def turning(self) -> IntArray:
+        """The first and last runs and those higher or lower than both neighbouring runs."""
+        rising = self.level[1:] > self.level[:-1]
+        return np.flatnonzero(np.concatenate(([True], rising[1:] != rising[:-1], [True])))
 
 
 def _runs(x: FloatArray) -> _Runs:
@@ -52,8 +61,7 @@ def local_maxima(x: FloatArray) -> IntArray:
     if x.size < 3:
         return np.zeros(0, dtype=np.int64)
     r = _runs(x)
-    top = _top_runs(r.level)
-    return np.asarray((r.starts[top] + r.ends[top]) // 2, dtype=np.int64)
+    return r.middles(_top_runs(r.level))
 
 
 def _max_tables(x: FloatArray) -> list[FloatArray]:
@@ -64,13 +72,6 @@ def _max_tables(x: FloatArray) -> list[FloatArray]:
         tables.append(np.maximum(tables[-1][:-k], tables[-1][k:]))
         k *= 2
     return tables
-
-
-def _range_min(x: FloatArray, start: IntArray, stop: IntArray) -> FloatArray:
-    """min(x[start:stop]) for each pair (stop > start, stop <= x.size)."""
-    padded = np.append(x, np.inf)
-    edges = np.stack([start, stop], axis=1).ravel()
-    return np.asarray(np.minimum.reduceat(padded, edges)[::2], dtype=np.float64)
 
 
 PRUNE_LEVEL = 3
@@ -116,8 +117,8 @@ def _sequence_prominences(c: FloatArray, peaks: IntArray, at_least: float) -> Fl
         ok = (first >= 0) & (first + step <= n)
         first = np.where(ok, first, 0)
         edge = np.where(ok & (block[first] <= vv), edge + sign * step, edge)
-    left_min = _range_min(c, edge[:m], pk + 1)
-    right_min = _range_min(c, pk, edge[m:] + 1)
+    left_min = segment_min(c, edge[:m], pk + 1)
+    right_min = segment_min(c, pk, edge[m:] + 1)
     out[todo] = vk - np.maximum(left_min, right_min)
     return out
 
@@ -138,16 +139,10 @@ def prominences(x: FloatArray, peaks: IntArray, at_least: float = -np.inf) -> Fl
     if peaks.size == 0:
         return np.zeros(0)
     r = _runs(x)
-    rising = r.level[1:] > r.level[:-1]
-    turning = np.flatnonzero(np.concatenate(([True], rising[1:] != rising[:-1], [True])))
+    turning = r.turning()
     run_of_peak = np.searchsorted(r.starts, peaks, side="right") - 1
     at = np.searchsorted(turning, run_of_peak)
     return _sequence_prominences(r.level[turning], at, at_least)
-
-
-def prominent_peaks(x: FloatArray, prominence: float) -> IntArray:
-    """``scipy.signal.find_peaks(x, prominence=prominence)[0]``."""
-    return prominent_extremes(x, prominence)[0]
 
 
 def prominent_extremes(x: FloatArray, prominence: float) -> tuple[IntArray, IntArray]:
@@ -162,8 +157,7 @@ def prominent_extremes(x: FloatArray, prominence: float) -> tuple[IntArray, IntA
     if x.size < 3:
         return none, none
     r = _runs(x)
-    rising = r.level[1:] > r.level[:-1]
-    turning = np.flatnonzero(np.concatenate(([True], rising[1:] != rising[:-1], [True])))
+    turning = r.turning()
     top, bottom = _top_runs(r.level), _top_runs(-r.level)
     if top.size + bottom.size == 0:
         return none, none
@@ -175,11 +169,7 @@ def prominent_extremes(x: FloatArray, prominence: float) -> tuple[IntArray, IntA
     prom = _sequence_prominences(joined, at, prominence)
     with np.errstate(invalid="ignore"):
         keep = prominence <= prom
-    mid = (r.starts + r.ends) // 2
-    return (
-        np.asarray(mid[top[keep[: top.size]]], dtype=np.int64),
-        np.asarray(mid[bottom[keep[top.size :]]], dtype=np.int64),
-    )
+    return r.middles(top[keep[: top.size]]), r.middles(bottom[keep[top.size :]])
 
 
 def peaks_apart(x: FloatArray, height: float, distance: int) -> IntArray:

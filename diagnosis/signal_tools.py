@@ -318,11 +318,24 @@ def half_cycles(
     return HalfCycles(shapes, starts, stops, iae, segment_max(ax, starts, stops))
 
 
+def _segment_reduce(op: np.ufunc, x: FloatArray, starts: IntArray, stops: IntArray) -> FloatArray:
+    """``op`` over ``x[start:stop]`` of every (non-empty) segment, at once: ``reduceat`` over
+    the interleaved (start, stop) pairs, read at the even positions (the odd ones, between
+    segments, are dropped, so segments may overlap or leave gaps). A stop at ``x.size`` reads
+    through a copy of ``x`` one sample longer (``reduceat`` takes no index past the end)."""
+    if stops.size and int(stops.max()) >= x.size:
+        x = np.append(x, x[-1])
+    return np.asarray(op.reduceat(x, np.column_stack((starts, stops)).ravel())[::2], dtype=x.dtype)
+
+
 def segment_max(x: FloatArray, starts: IntArray, stops: IntArray) -> FloatArray:
-    """``max(x[start:stop])`` of every (non-empty) segment, at once: ``reduceat`` over the
-    interleaved (start, stop) pairs, read at the even positions. Segments must lie inside ``x``
-    with ``stop < x.size``; they may leave gaps but not overlap."""
-    return np.maximum.reduceat(x, np.column_stack((starts, stops)).ravel())[::2]
+    """``max(x[start:stop])`` of every (non-empty) segment, at once (``_segment_reduce``)."""
+    return _segment_reduce(np.maximum, x, starts, stops)
+
+
+def segment_min(x: FloatArray, starts: IntArray, stops: IntArray) -> FloatArray:
+    """``min(x[start:stop])`` of every (non-empty) segment, at once (``_segment_reduce``)."""
+    return _segment_reduce(np.minimum, x, starts, stops)
 
 
 def first_peaks(x: FloatArray, starts: IntArray, stops: IntArray) -> IntArray:

@@ -43,6 +43,8 @@ from plantcheck.diagnosis.signal_tools import (
     first_order_lags,
     moving_average,
     noise_sigma,
+    segment_max,
+    segment_min,
 )
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult, Verdict
 
@@ -347,12 +349,9 @@ def _stuck_phases(
     # the slip goes toward the set point: the sign of the error just before the turn
     lo = np.maximum(s, a - 2 * sig.w)
     toward = np.sign(sig.cum_e[a + 1] - sig.cum_e[lo])
-    # max and min of ys[a:b+1] per stretch at once (reduceat reads the even positions; the
-    # padded sample keeps the last stop inside the array)
-    padded = np.append(sig.ys, sig.ys[-1])
-    pairs = np.column_stack((a, b + 1)).ravel()
-    up = np.maximum.reduceat(padded, pairs)[::2] - sig.ys[a]
-    down = sig.ys[a] - np.minimum.reduceat(padded, pairs)[::2]
+    # max and min of ys[a:b+1] per stretch at once
+    up = segment_max(sig.ys, a, b + 1) - sig.ys[a]
+    down = sig.ys[a] - segment_min(sig.ys, a, b + 1)
     size = np.where(toward > 0, up, down)
     ok = (
         (length >= p.min_stuck_samples)
