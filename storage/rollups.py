@@ -22,11 +22,17 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from sqlalchemy import and_, delete, select, text
+from sqlalchemy import and_, bindparam, delete, select, text
 
 from plantcheck.core.status_codes import BAD
 from plantcheck.storage.schema import sample_hours, samples
-from plantcheck.storage.store import LoopRow, Store, first_of_tags, signal_range
+from plantcheck.storage.store import (
+    LoopRow,
+    Store,
+    delete_per_tag,
+    first_of_tags,
+    signal_range,
+)
 
 HOUR_US = 3_600_000_000
 """One hour in µs: roll-ups start on whole hours since 1970 (UTC)."""
@@ -107,20 +113,13 @@ async def purge_hours(store: Store, before_us: int, tag_ids: Iterable[int] | Non
     """Delete roll-ups of hours starting before ``before_us`` of ``tag_ids`` (None: every tag),
     a key range per tag."""
     ids = list(tag_ids) if tag_ids is not None else await store.tag_ids()
-    deleted = 0
+    older = delete(sample_hours).where(
+        sample_hours.c.tag_id == bindparam("tag"), sample_hours.c.hour_us < before_us
+    )
     async with store.engine.begin() as conn:
-        oldest = await first_of_tags(conn, ids, sample_hours.c.tag_id, sample_hours.c.hour_us)
-        for tag in ids:
-            first = oldest.get(tag)
-            if first is None or first >= before_us:
-                continue
-            res = await conn.execute(
-                delete(sample_hours).where(
-                    sample_hours.c.tag_id == tag, sample_hours.c.hour_us < before_us
-                )
-            )
-            deleted += int(res.rowcount or 0)
-    return deleted
+        return await delete_per_tag(
+            conn, ids, sample_hours.c.tag_id, sample_hours.c.hour_us, before_us, older
+        )
 
 
 async def read_hours(

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import and_, bindparam, delete, func, insert, select, text, update
+from sqlalchemy import Delete, and_, bindparam, delete, func, insert, select, text, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
 from sqlalchemy.sql.elements import ColumnElement
@@ -97,6 +97,29 @@ async def first_of_tags(
         tags.c.id.in_(list(tag_ids))
     )
     return {int(t): (None if v is None else int(v)) for t, v in (await conn.execute(q)).all()}
+
+
+async def delete_per_tag(
+    conn: AsyncConnection,
+    tag_ids: Sequence[int],
+    tag_col: ColumnElement[int],
+    time_col: ColumnElement[int],
+    before_us: int,
+    statement: Delete,
+) -> int:
+    """Run ``statement`` (a delete of one tag's key range, bound on ``tag``) for every tag of
+    ``tag_ids`` with a row older than ``before_us``; returns the rows deleted.
+
+    One look at every tag's oldest row first: most tags of an hourly slice have nothing to
+    delete, and a statement per tag costs the ingest process CPU it needs for commits."""
+    oldest = await first_of_tags(conn, tag_ids, tag_col, time_col)
+    deleted = 0
+    for tag in tag_ids:
+        first = oldest.get(tag)
+        if first is not None and first < before_us:
+            res = await conn.execute(statement, {"tag": tag})
+            deleted += int(res.rowcount or 0)
+    return deleted
 
 
 def signal_range(
@@ -541,18 +564,10 @@ class Store:
             samples.c.tag_id == bindparam("tag"), samples.c.ts_us < newest
         )
         ids = list(tag_ids) if tag_ids is not None else await self.tag_ids()
-        deleted = 0
         async with self.engine.begin() as conn:
-            # one look at every tag's oldest sample first: most tags of a slice have nothing to
-            # delete, and a statement per tag costs the ingest process CPU it needs for commits
-            oldest = await first_of_tags(conn, ids, samples.c.tag_id, samples.c.ts_us)
-            for tag_id in ids:
-                first = oldest.get(tag_id)
-                if first is None or first >= before_us:
-                    continue
-                res = await conn.execute(older, {"tag": tag_id})
-                deleted += int(res.rowcount or 0)
-        return deleted
+            return await delete_per_tag(
+                conn, ids, samples.c.tag_id, samples.c.ts_us, before_us, older
+            )
 
     async def checkpoint(self) -> None:
         """SQLite: fold the WAL back into the database file (no-op on PostgreSQL)."""
