@@ -18,6 +18,7 @@ from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
 from plantcheck.diagnosis.cause_split import SplitParams, split_cause
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
+from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
 from plantcheck.diagnosis.oscillation import (
     SPECTRAL,
     OscillationParams,
@@ -323,9 +324,24 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
     )
     diag.indices["idle_index"] = ii
     sluggish = ii is not None and ii > p.tuning.idle_limit
-    responses = sp_step_responses(win.pv, win.sp, np.asarray(win.steps, dtype=np.int64))
+    steps = np.asarray(win.steps, dtype=np.int64)
+    responses = sp_step_responses(win.pv, win.sp, steps)
     slowness = step_slowness(responses)
     diag.indices["sp_step_slowness"] = slowness
+    recoveries = () if is_integrating(run.loop_type) else load_recoveries(win.pv, win.sp, steps)
+    load_slowness = recovery_slowness(recoveries)
+    diag.indices["load_recovery_slowness"] = load_slowness
+    slow_recovery = load_slowness is not None and load_slowness > p.tuning.load_recovery_limit
+    idle_sluggish = sluggish
+    if slow_recovery and slowness is None:
+        # a load step is the experiment a running plant does: an error that comes back many
+        # times slower than it went out is sluggish, whatever the idle index reads from the
+        # signs of increments that noise swamps in a slow loop
+        sluggish = True
+        diag.notes.append(
+            f"load recoveries: {load_slowness:.1f} x slower than the departures (median of "
+            f"{len(recoveries)}; sluggish above {p.tuning.load_recovery_limit:g})"
+        )
     if slowness is not None:
         # a set-point step is a clean experiment: it overrules the idle index, which only
         # sees load recoveries and reads a healthy slow loop's creep as sluggish
@@ -342,7 +358,7 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
         # set-point steps the index reads the tail of a step response, which creeps toward
         # SP in any loop: there it cannot overrule the events.
         after_steps = bool(win.steps)
-        if not sluggish or events.unresponsive is not None or after_steps:
+        if not idle_sluggish or events.unresponsive is not None or after_steps:
             _stiction_from_events(diag, events, win.pv, win.op, run.gain_sign)
             return
         diag.notes.append(
@@ -352,6 +368,9 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
     if sluggish and slowness is not None:
         diag.cause = "sluggish_tuning"
         diag.confidence = float(min(0.9, 0.5 + 0.05 * slowness))
+    elif sluggish and slow_recovery and load_slowness is not None:
+        diag.cause = "sluggish_tuning"
+        diag.confidence = float(min(0.9, 0.5 + 0.05 * load_slowness))
     elif sluggish and ii is not None:
         diag.cause = "sluggish_tuning"
         diag.confidence = float(min(0.9, 0.5 + (ii - p.tuning.idle_limit)))

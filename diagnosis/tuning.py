@@ -31,6 +31,13 @@ class TuningParams:
     sluggish (``step_response.step_slowness``). SIMC tuning answers in about one dead time
     (Skogestad 2003); generated windows with steps (``simulator/plant_windows.py``): healthy
     loops 0.6-2.4, sticky ones 0.5-2.7, sluggish ones 3.2-350 [R]."""
+    load_recovery_limit: float = 3.0
+    """Load responses: recovery (peak to 37 %) above this many times the departure (onset to
+    peak) -> sluggish, where no set-point step says otherwise (``load_recovery``). Generated
+    windows of self-regulating loops (``simulator/plant_windows.py``, seeds 1-2, 10-90 %):
+    healthy 0.8-1.8, sticky 0.3-0.9, aggressive or disturbed 0.7-1.0, sluggish 2.6-8.1; above
+    3: 34 of the 40 sluggish windows with a load response read, none of the healthy, sticky,
+    aggressive or disturbed ones (3 saturated ones, which the window check decides first) [R]."""
     idle_min_samples: int = 50
     """Fewest informative samples (both increments beyond the dead zone) for an idle index."""
     idle_filter_ti: float = 0.5
