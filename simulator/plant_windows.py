@@ -65,7 +65,9 @@ def generate_plant_window_cases(seed: int = 1, per_cell: int = 2) -> Iterator[Pl
     of the windows, one to three noise σ a step). The classes:
 
     - ``ok``: SIMC PI (Skogestad 2003), random load steps;
-    - ``stiction``: a Kano or He valve, S 1-8 %, J/S 0.2-1;
+    - ``stiction``: a Kano or He valve, S 1-8 %, J/S 0.2-1, both raised where the slip would
+      move the PV by less than 4 × its noise and recording step (the short-window family's
+      rule: a slip hidden in the noise is a valve the standard chain cannot see);
     - ``aggressive_tuning``: gain 0.8-0.95 of the ultimate gain, coloured load;
     - ``sluggish_tuning``: gain × 0.2, integral time × 5 (methods §9.1), load steps;
     - ``external_disturbance``: a sinusoidal load with a period of 0.5-20 × the loop's
@@ -111,6 +113,12 @@ def _draw(
     if cause == "stiction":
         S = float(rng.choice([1.0, 2.0, 4.0, 8.0]))
         J = S * float(rng.choice([0.2, 0.5, 1.0]))
+        # a slip the PV shows: 4 × the noise and the recording step, as in the short-window
+        # family (a smaller one is a valve the standard chain cannot see, whatever its S)
+        slip = proc.K * (20.0 * ts if proc.kind == "integrating" else 1.0)
+        grow = 4.0 * max(noise, quantum) / (slip * J)
+        if grow > 1.0:
+            S, J = round(S * grow, 1), round(J * grow, 1)
         valve = "kano" if rng.uniform() < 0.5 else "he"
         loads = (_random_loads(rng, dur, 40 * su.tu, 0.3 * S),)
         extra = f"-{valve}-S{S:g}-J{J:g}"
