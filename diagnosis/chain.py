@@ -264,9 +264,39 @@ def _window_verdict(run: _Run) -> bool:
     verdict = run.win.verdict
     if verdict is None:
         return False
+    if run.win.sp_limited and _judge_steps_alone(run):
+        return True
     run.diag.cause = verdict
     run.diag.confidence = 0.9
     run.diag.actions = [action_for(verdict)]
+    return True
+
+
+def _judge_steps_alone(run: _Run) -> bool:
+    """Set-point steps too close together for the oscillation tests: their responses judge the
+    tuning alone (issue 25 item 1). Slow ones are sluggish; fast, well-damped ones are ok;
+    True when they decide. A response that overshoots may be an aggressive controller, a
+    sticky valve or a disturbance, which only the oscillation tests tell apart: undecided."""
+    win, p, diag = run.win, run.p, run.diag
+    responses = sp_step_responses(win.pv, win.sp, np.asarray(win.steps, dtype=np.int64))
+    slowness = step_slowness(responses)
+    if slowness is None:
+        return False
+    overshoot = float(np.median([r.overshoot for r in responses]))
+    diag.indices["sp_step_slowness"] = slowness
+    diag.indices["sp_step_overshoot"] = overshoot
+    if slowness > p.tuning.step_slowness_limit:
+        diag.cause, diag.confidence = "sluggish_tuning", 0.6
+    elif overshoot <= p.tuning.step_overshoot_limit:
+        diag.cause, diag.confidence = "ok", 0.5
+    else:
+        return False
+    diag.notes.append(
+        f"judged from the {len(responses)} set-point step response(s) alone: closed-loop time "
+        f"constant {slowness:.1f} x the dead time (sluggish above "
+        f"{p.tuning.step_slowness_limit:g}), overshoot {100 * overshoot:.0f} % (median)"
+    )
+    diag.actions = [action_for(diag.cause)]
     return True
 
 

@@ -31,6 +31,10 @@ class TuningParams:
     sluggish (``step_response.step_slowness``). SIMC tuning answers in about one dead time
     (Skogestad 2003); generated windows with steps (``simulator/plant_windows.py``): healthy
     loops 0.6-2.4, sticky ones 0.5-2.7, sluggish ones 3.2-350 [R]."""
+    step_overshoot_limit: float = 0.5
+    """Set-point steps too close together for the oscillation tests: responses that overshoot
+    by at most this share of the step (median) are ok, beyond it undecided. Generated windows
+    (10-90 %): healthy 0.07-0.35, aggressive 0.61-1.0, sticky and disturbed 0.16-1.1 [R]."""
     load_recovery_limit: float = 3.0
     """Load responses: recovery (peak to 37 %) above this many times the departure (onset to
     peak) -> sluggish, where no set-point step says otherwise (``load_recovery``). Generated

@@ -62,3 +62,28 @@ def test_small_or_short_steps_are_not_read() -> None:
     assert sp_step_responses(pv, sp, np.array([500])) == ()
     sp = np.where(np.arange(1000) < 990, 50.0, 60.0)  # 10 samples left: too few
     assert sp_step_responses(pv, sp, np.array([990])) == ()
+
+
+@pytest.mark.parametrize("sluggish", [False, True])
+def test_steps_too_close_for_the_oscillation_tests_still_judge_the_tuning(sluggish: bool) -> None:
+    """Five set-point steps in 1,000 samples leave no settled stretch of 300: the responses
+    alone decide, and the window is not refused (issue 25 item 1)."""
+    su = process_setup("pressure")
+    pi = replace(su.pi, Kc=0.2 * su.pi.Kc, Ti_s=5 * su.pi.Ti_s) if sluggish else su.pi
+    n = 1000
+    dur = n * su.ts
+    levels = ((0.1, 54.0), (0.3, 47.0), (0.5, 53.0), (0.7, 46.0), (0.9, 50.0))
+    cfg = LoopConfig(
+        process=su.process,
+        controller=pi,
+        sample_time_s=su.ts,
+        n_samples=n,
+        warmup_samples=int(20 * su.tu / su.ts) + 200,
+        noise_std=0.2,
+        seed=5,
+        sp_steps=tuple((f * dur, v) for f, v in levels),
+    )
+    run = simulate_loop(cfg)
+    d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type="pressure", quantify=False)
+    assert d.cause == ("sluggish_tuning" if sluggish else "ok"), d.notes
+    assert any("set-point step response(s) alone" in n for n in d.notes)
