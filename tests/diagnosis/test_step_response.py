@@ -14,10 +14,17 @@ from plantcheck.simulator.cases import process_setup
 from plantcheck.simulator.loop import LoopConfig, simulate_loop
 
 
-def _stepped(pname: str, sluggish: bool, seed: int = 3) -> tuple[LoopConfig, float]:
+def _stepped(
+    pname: str,
+    sluggish: bool,
+    seed: int = 3,
+    n: int = 3600,
+    levels: tuple[tuple[float, float], ...] = ((0.2, 54.0), (0.55, 47.0)),
+) -> tuple[LoopConfig, float]:
+    """SIMC PI (or its sluggish detuning, methods §9.1) and set-point steps to ``levels`` at
+    the given shares of the window."""
     su = process_setup(pname)
     pi = replace(su.pi, Kc=0.2 * su.pi.Kc, Ti_s=5 * su.pi.Ti_s) if sluggish else su.pi
-    n = 3600
     dur = n * su.ts
     cfg = LoopConfig(
         process=su.process,
@@ -27,7 +34,7 @@ def _stepped(pname: str, sluggish: bool, seed: int = 3) -> tuple[LoopConfig, flo
         warmup_samples=int(20 * su.tu / su.ts) + 200,
         noise_std=0.2,
         seed=seed,
-        sp_steps=((0.2 * dur, 54.0), (0.55 * dur, 47.0)),
+        sp_steps=tuple((f * dur, v) for f, v in levels),
     )
     return cfg, su.ts
 
@@ -68,22 +75,9 @@ def test_small_or_short_steps_are_not_read() -> None:
 def test_steps_too_close_for_the_oscillation_tests_still_judge_the_tuning(sluggish: bool) -> None:
     """Five set-point steps in 1,000 samples leave no settled stretch of 300: the responses
     alone decide, and the window is not refused (issue 25 item 1)."""
-    su = process_setup("pressure")
-    pi = replace(su.pi, Kc=0.2 * su.pi.Kc, Ti_s=5 * su.pi.Ti_s) if sluggish else su.pi
-    n = 1000
-    dur = n * su.ts
     levels = ((0.1, 54.0), (0.3, 47.0), (0.5, 53.0), (0.7, 46.0), (0.9, 50.0))
-    cfg = LoopConfig(
-        process=su.process,
-        controller=pi,
-        sample_time_s=su.ts,
-        n_samples=n,
-        warmup_samples=int(20 * su.tu / su.ts) + 200,
-        noise_std=0.2,
-        seed=5,
-        sp_steps=tuple((f * dur, v) for f, v in levels),
-    )
+    cfg, ts = _stepped("pressure", sluggish, seed=5, n=1000, levels=levels)
     run = simulate_loop(cfg)
-    d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type="pressure", quantify=False)
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type="pressure", quantify=False)
     assert d.cause == ("sluggish_tuning" if sluggish else "ok"), d.notes
     assert any("set-point step response(s) alone" in n for n in d.notes)
