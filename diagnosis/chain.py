@@ -353,7 +353,8 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
         else idle_index(op_s, pv_s, ts, pi.gain_sign, tf, p.tuning)
     )
     diag.indices["idle_index"] = ii
-    sluggish = ii is not None and ii > p.tuning.idle_limit
+    idle_sluggish = ii is not None and ii > p.tuning.idle_limit
+    sluggish = idle_sluggish
     steps = np.asarray(win.steps, dtype=np.int64)
     responses = sp_step_responses(win.pv, win.sp, steps)
     slowness = step_slowness(responses)
@@ -362,7 +363,6 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
     load_slowness = recovery_slowness(recoveries)
     diag.indices["load_recovery_slowness"] = load_slowness
     slow_recovery = load_slowness is not None and load_slowness > p.tuning.load_recovery_limit
-    idle_sluggish = sluggish
     if slow_recovery and slowness is None:
         # a load step is the experiment a running plant does: an error that comes back many
         # times slower than it went out is sluggish, whatever the idle index reads from the
