@@ -37,6 +37,17 @@ PROCESSES: dict[str, tuple[str, Process]] = {
 }
 
 
+VISIBLE_SLIP_NOISE = 4.0
+"""A sticky case's slip moves the PV by at least this many × its noise and recording step: the
+events an engineer sees on the trend (a smaller slip is a valve the standard chain cannot see)."""
+
+
+def slip_on_pv(proc: Process, J: float, ts: float) -> float:
+    """PV move (PV units) a valve slip of ``J`` % causes: through the gain, or for a level
+    through its integration over 20 samples of ``ts`` s."""
+    return proc.K * J * (20.0 * ts if proc.kind == "integrating" else 1.0)
+
+
 def simc_pi(p: Process) -> PIController:
     """SIMC PI tuning with τ_c = θ (Skogestad 2003); θ includes half the second lag."""
     theta = max(p.theta_s + p.tau2_s / 2.0, 0.5)
@@ -315,8 +326,9 @@ def generate_short_window_cases(
                     events = valve_breakaways(simulate_loop(sticky).mv, 0.5 * J)
                     # a slip an engineer can see on the trend: the PV move it causes (over
                     # 20 samples for a level) stands 4 × above the noise and the recording step
-                    slip = proc.K * J * (20.0 * ts if proc.kind == "integrating" else 1.0)
-                    visible = slip >= 4.0 * max(noise, quantum, compression)
+                    visible = slip_on_pv(proc, J, ts) >= VISIBLE_SLIP_NOISE * max(
+                        noise, quantum, compression
+                    )
                     if 1 <= events <= 3 and visible:
                         break
                 tag = f"{loop_type}-steps{n_steps}-noise{noise}-{recording}-r{rep}"

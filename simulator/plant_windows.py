@@ -18,10 +18,12 @@ import numpy as np
 from plantcheck.core.vocabulary import CAUSES
 from plantcheck.simulator.cases import (
     PROCESSES,
+    VISIBLE_SLIP_NOISE,
     Case,
     ProcessSetup,
     _random_loads,
     process_setup,
+    slip_on_pv,
 )
 from plantcheck.simulator.loop import Disturbance, LoopConfig, Process
 
@@ -113,10 +115,8 @@ def _draw(
     if cause == "stiction":
         S = float(rng.choice([1.0, 2.0, 4.0, 8.0]))
         J = S * float(rng.choice([0.2, 0.5, 1.0]))
-        # a slip the PV shows: 4 × the noise and the recording step, as in the short-window
-        # family (a smaller one is a valve the standard chain cannot see, whatever its S)
-        slip = proc.K * (20.0 * ts if proc.kind == "integrating" else 1.0)
-        grow = 4.0 * max(noise, quantum) / (slip * J)
+        # a slip the PV shows, as in the short-window family
+        grow = VISIBLE_SLIP_NOISE * max(noise, quantum) / slip_on_pv(proc, J, ts)
         if grow > 1.0:
             S, J = round(S * grow, 1), round(J * grow, 1)
         valve = "kano" if rng.uniform() < 0.5 else "he"
