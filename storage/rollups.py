@@ -45,7 +45,11 @@ TAGS_PER_TRANSACTION = 200
 
 _UPSERT = text(
     # ts_us >= 0: integer division is the floor; SQLite (>= 3.24) and PostgreSQL share the
-    # upsert syntax, and the WHERE clause keeps SQLite's parser from reading ON as a join
+    # upsert syntax, and the WHERE clause keeps SQLite's parser from reading ON as a join.
+    # A re-read hour only replaces its row when it counts at least as many values: late
+    # samples only add to an hour, while retention (which keeps each tag's newest sample) can
+    # leave one value of an hour still inside the lookback of a tag that stopped reporting,
+    # and that remnant must not overwrite the hour's summary
     f"""
     INSERT INTO sample_hours (tag_id, hour_us, n, mean, low, high)
     SELECT tag_id, (ts_us / {HOUR_US}) * {HOUR_US}, count(*), avg(value), min(value), max(value)
@@ -55,6 +59,7 @@ _UPSERT = text(
     GROUP BY 1, 2
     ON CONFLICT (tag_id, hour_us) DO UPDATE SET
       n = excluded.n, mean = excluded.mean, low = excluded.low, high = excluded.high
+    WHERE excluded.n >= sample_hours.n
     """
 )
 

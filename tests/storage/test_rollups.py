@@ -59,6 +59,13 @@ def test_hours_roll_up_outlive_the_samples_and_take_late_ones(db_url: str) -> No
             # the samples go (retention), the hours stay
             await store.purge(T0 + 4 * HOUR_US)
             assert len(await read_hours(store, loop, T0, T0 + HOUR_US)) == 2
+            # a roll-up after the purge re-reads the OP's last hour, where only its newest
+            # sample is left: that remnant does not replace the hour's summary
+            await roll_up(store, T0 + 200 * MIN, [pv, op])
+            kept = {
+                (h.signal, (h.hour_us - T0) // HOUR_US): h for h in await read_hours(store, loop)
+            }
+            assert kept[("op", 1)] == by[("op", 1)] and kept[("pv", 2)] == late[2]
             # and go in their own time
             assert await purge_hours(store, T0 + HOUR_US) == 2
             assert {h.hour_us for h in await read_hours(store, loop)} == {
