@@ -258,7 +258,7 @@ def valve_breakaways(mv: FloatArray, min_jump: float, min_stuck: int = 3) -> int
 
 
 def generate_short_window_cases(
-    seed: int = 1, per_cell: int = 4, max_tries: int = 30
+    seed: int = 1, per_cell: int = 4, max_tries: int = 300
 ) -> Iterator[Case]:
     """Two-hour windows at 10 s of slow loops, sticky and healthy, as real plants give them.
 
@@ -271,8 +271,9 @@ def generate_short_window_cases(
     and shows one to three stick-slip events in the window, counted on the simulated stem
     position, each moving the PV by at least 4 × its noise and recording step (the events an
     engineer sees on the trend); cases that miss either are drawn again, up to ``max_tries``
-    times. Each sticky case has a healthy twin: the same process, tuning, noise, set-point
-    steps, loads and recording, with a linear valve.
+    times (a family that cannot be drawn raises rather than yield cases outside its spec).
+    Each sticky case has a healthy twin: the same process, tuning, noise, set-point steps,
+    loads and recording, with a linear valve.
     """
     rng = np.random.default_rng(seed)
     ts = 10.0
@@ -323,14 +324,19 @@ def generate_short_window_cases(
                         seed=int(rng.integers(1 << 30)),
                     )
                     sticky = LoopConfig(valve=valve, S=S, J=J, **common)  # type: ignore[arg-type]
-                    events = valve_breakaways(simulate_loop(sticky).mv, 0.5 * J)
                     # a slip an engineer can see on the trend: the PV move it causes (over
                     # 20 samples for a level) stands 4 × above the noise and the recording step
                     visible = slip_on_pv(proc, J, ts) >= VISIBLE_SLIP_NOISE * max(
                         noise, quantum, compression
                     )
-                    if 1 <= events <= 3 and visible:
+                    events = valve_breakaways(simulate_loop(sticky).mv, 0.5 * J) if visible else 0
+                    if 1 <= events <= 3:
                         break
+                else:
+                    raise RuntimeError(
+                        f"no sticky case with 1-3 visible events in {max_tries} draws at noise "
+                        f"{noise} ({recording}); raise max_tries"
+                    )
                 tag = f"{loop_type}-steps{n_steps}-noise{noise}-{recording}-r{rep}"
                 yield Case(f"stiction-{valve}-S{S:g}-J{J:g}-events{events}-{tag}", "stiction",
                            loop_type, sticky)  # fmt: skip

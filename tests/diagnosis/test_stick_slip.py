@@ -17,7 +17,12 @@ from plantcheck.diagnosis.stick_slip import (
     process_gain,
     size_from_events,
 )
-from plantcheck.simulator.cases import generate_short_window_cases, valve_breakaways
+from plantcheck.simulator.cases import (
+    VISIBLE_SLIP_NOISE,
+    generate_short_window_cases,
+    slip_on_pv,
+    valve_breakaways,
+)
 from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
 
 
@@ -198,7 +203,7 @@ def short_family() -> collections.Counter[tuple[str, bool]]:
 
 def test_short_window_family_floors(short_family: collections.Counter[tuple[str, bool]]) -> None:
     """Floors below the measured figures (benchmarks/short_window_accuracy.py, seeds 1 and
-    2: recall 0.64, false alarms 4 %)."""
+    2: recall 0.61, false alarms 5.6 %)."""
     tp, fn = short_family[("stiction", True)], short_family[("stiction", False)]
     fp, tn = short_family[("ok", True)], short_family[("ok", False)]
     assert tp / (tp + fn) >= 0.5, (tp, fn)
@@ -206,13 +211,15 @@ def test_short_window_family_floors(short_family: collections.Counter[tuple[str,
 
 
 def test_short_family_looks_like_plants() -> None:
-    """Every sticky case shows one to three slips, and every cell of the family is there."""
+    """Every sticky case shows one to three slips the PV makes visible, and every cell of the
+    family is there."""
     cases = list(generate_short_window_cases(seed=5, per_cell=1))
     names = " ".join(c.name for c in cases)
     for word in ("continuous", "quantised", "compressed", "noise0.05", "noise0.5", "steps0"):
         assert word in names
     sticky = [c for c in cases if c.cause == "stiction"]
     assert len(sticky) == len(cases) // 2
-    in_range = sum(1 <= valve_breakaways(simulate_loop(c.config).mv, 0.5 * c.config.J) <= 3
-                   for c in sticky)  # fmt: skip
-    assert in_range >= 0.8 * len(sticky)
+    for c in sticky:
+        assert 1 <= valve_breakaways(simulate_loop(c.config).mv, 0.5 * c.config.J) <= 3, c.name
+        noise = max(c.config.noise_std, c.config.pv_quantum, c.config.pv_compression)
+        assert slip_on_pv(c.config.process, c.config.J, 10.0) >= VISIBLE_SLIP_NOISE * noise
