@@ -172,7 +172,10 @@ def test_workers_standby_and_collector(pg_cluster: PgCluster, tmp_path: Path, pr
         times = counts.get(name, [])
         assert expected - 2 <= len(times) <= expected + 1, (name, len(times), expected)
         gaps = [y - x for x, y in itertools.pairwise(times)]
-        assert min(gaps) > 0.25 * PERIOD_S * 1e6, (name, gaps)  # never twice at once
+        # never twice at once: a duplicate job lands within a job's run time of the other
+        # (milliseconds); a job that a loaded machine ran late is followed by a punctual one
+        # up to a period later, so the bound leaves room for lateness (0.97 s was seen)
+        assert min(gaps) > 0.1 * PERIOD_S * 1e6, (name, gaps)
 
     # kill -9 worker 1 in the middle of a job: the job goes on to worker 2
     job = _wait(
