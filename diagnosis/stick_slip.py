@@ -81,6 +81,16 @@ class StickSlipParams:
     """Slow loops: the stick-slip model's residual is at most 1/this of the linear one's ..."""
     evidence_chi2: float = 300.0
     """... and the residual it removes is at least this many noise variances."""
+    fitted_noise: float = 2.0
+    """A stick-slip model *fits to the noise* when its residual mean square is at most this
+    many noise variances. The noise then fills both models' residuals, so in a noisy window
+    (σ 0.5 % of span) even a clear slip cannot make the linear residual 5 × larger: there the
+    test asks for the two values below instead."""
+    evidence_ratio_fitted: float = 2.5
+    """A stick-slip model that fits to the noise: its residual at most 1/this of the linear
+    one's ..."""
+    evidence_chi2_fitted: float = 200.0
+    """... and removing at least this many noise variances."""
     stick_slip_ratio: float = 20.0
     """Fast loops: the stuck phase lasts at least this many times the slip's half-time (a
     linear loop rises and falls at comparable speeds) ..."""
@@ -240,13 +250,22 @@ def _best_fits(
     regressors r of two models (rows of ``regressors`` before and from ``split``), with
     c2·sign >= 0 (else c2 = 0), ``signs`` one per row.
 
-    Frisch–Waugh: the straight line is taken out of y and of every regressor first, so that
-    each candidate needs one slope only; every group is fitted in the same few array passes."""
+    Frisch–Waugh: with the straight line taken out of y, each candidate needs one slope only,
+    and the line's share of a regressor comes from its sum and its product with the time axis
+    (no detrended copy of the regressors: this runs a few dozen times per window); every group
+    is fitted in the same few array passes. Each row is taken relative to its first value, so
+    that a level of 50 % does not swamp a variation of a tenth of a percent."""
     r0 = _detrended(y)
-    proj = _detrended(regressors)
-    ss = np.einsum("gn,gn->g", proj, proj)
-    c2 = np.where(ss > 0, proj @ r0 / np.where(ss > 0, ss, 1.0), 0.0)
-    gain = np.where(c2 * signs > 0, c2 * c2 * ss, 0.0)
+    n = y.size
+    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
+    tt = float(t @ t) or 1.0
+    rel = regressors - regressors[:, :1]
+    s1 = rel.sum(axis=1)
+    st = rel @ t
+    ss = np.einsum("gn,gn->g", rel, rel) - s1 * s1 / n - st * st / tt
+    py = rel @ r0
+    pos = ss > 0
+    gain = np.where(pos & (py * signs > 0), py * py / np.where(pos, ss, 1.0), 0.0)
     total = float(r0 @ r0)
     return total - float(gain[:split].max()), total - float(gain[split:].max())
 
@@ -549,10 +568,11 @@ def detect_stick_slip(
                 sse_lin, sse_slip = _slip_evidence(
                     pv, dyn, start, ev.breakaway, b, toward, gain_sign, integrating
                 )
-                if (
-                    sse_lin >= p.evidence_ratio * sse_slip
-                    and (sse_lin - sse_slip) / noise_var >= p.evidence_chi2
-                ):
+                fitted = sse_slip <= p.fitted_noise * (b - start + 1) * noise_var
+                ratio_needed = p.evidence_ratio_fitted if fitted else p.evidence_ratio
+                chi2 = (sse_lin - sse_slip) / noise_var
+                chi2_needed = p.evidence_chi2_fitted if fitted else p.evidence_chi2
+                if sse_lin >= ratio_needed * sse_slip and chi2 >= chi2_needed:
                     strong = True
                     break
         if strong or fast:
