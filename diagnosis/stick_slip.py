@@ -272,24 +272,31 @@ def _best_fits(
 
 @dataclass(frozen=True)
 class _Dynamics:
-    """Computed once per window: OP through every lag of ``LAG_GRID`` (rows; the longest delay
-    of ``DELAY_GRID`` as padding in front; the process state carries over from one event to
-    the next), and the unit-step response of every lag over the window's length."""
+    """Computed once per window: OP through every lag of ``LAG_GRID`` the linear model may use
+    (rows; the longest delay of ``DELAY_GRID`` as padding in front; the process state carries
+    over from one event to the next), the dead times it may use, and the unit-step response
+    of every lag over the window's length (the valve-step model uses all of them)."""
 
     op_lags: FloatArray
+    delays: IntArray
     rise: FloatArray
     pad: int
 
     @classmethod
-    def of(cls, op: FloatArray) -> _Dynamics:
+    def of(cls, op: FloatArray, longest: float | None = None) -> _Dynamics:
+        """``longest``: the linear model's longest lag and dead time, samples (None: the
+        grids' own)."""
         pad = max(DELAY_GRID)
         padded = np.concatenate([np.full(pad, op[0]), op])
         taus = np.asarray(LAG_GRID)[:, None]
         k = np.arange(op.size + 8, dtype=np.float64)
         with np.errstate(divide="ignore"):
             rise = np.where(taus > 0, 1.0 - np.exp(-(k + 1.0) / np.where(taus > 0, taus, 1.0)), 1.0)
-        poles = [math.exp(-1.0 / tau) if tau > 0 else 0.0 for tau in LAG_GRID]
-        return cls(first_order_lags(padded, poles), rise, pad)
+        bound = math.inf if longest is None else longest
+        lags = [tau for tau in LAG_GRID if tau <= bound]
+        delays = np.asarray([d for d in DELAY_GRID if d <= bound], dtype=np.int64)
+        poles = [math.exp(-1.0 / tau) if tau > 0 else 0.0 for tau in lags]
+        return cls(first_order_lags(padded, poles), delays, rise, pad)
 
 
 def _slip_evidence(
@@ -306,7 +313,8 @@ def _slip_evidence(
 
     Two local models, each with a straight line for slow load drift and a first-order lag
     (time constants ``LAG_GRID``): *linear*, the PV follows OP through the process (dead
-    times ``DELAY_GRID``, gain of the controller's sign); *stick-slip*, the valve stands still
+    times ``DELAY_GRID``, both as far as the loop's dynamics allow, gain of the controller's
+    sign); *stick-slip*, the valve stands still
     and steps once, toward the set point, a few samples around OP's turning point ``a``. For a
     level the valve sets the PV's slope, so both inputs are integrated. Returns the residual
     sums of squares (linear, stick-slip): this is the "PV changes faster than the loop's own
@@ -316,7 +324,7 @@ def _slip_evidence(
     n = y.size
     k = np.arange(n)
     # OP delayed by each dead time, through each lag: (delays × lags, n)
-    starts = dyn.pad + s - np.asarray(DELAY_GRID)
+    starts = dyn.pad + s - dyn.delays
     lin = dyn.op_lags[:, starts[:, None] + k].swapaxes(0, 1).reshape(-1, n)
     # a valve step a few samples around the turn, through each lag: (offsets × lags, n)
     since = k[None, :] - np.arange(a - s - 8, a - s + 3, 2)[:, None]
@@ -480,6 +488,7 @@ def detect_stick_slip(
     integrating: bool = False,
     gain_sign: int = 1,
     params: StickSlipParams | None = None,
+    fastest_process: float | None = None,
 ) -> StickSlipResult:
     """Find stick-slip events in one window (methods §4.10; Kano et al. 2004 principle).
 
@@ -493,6 +502,12 @@ def detect_stick_slip(
         Level loops: the PV slope stands in for the valve position.
     gain_sign:
         Sign of the process gain (+1: PV rises with OP), from the controller's action.
+    fastest_process:
+        The longest time constant and dead time, samples, that the process between valve and
+        PV can have (None: up to ``LAG_GRID`` and ``DELAY_GRID``'s largest). A flow loop's PV
+        follows the valve within seconds (Kano et al. 2004 and Yamashita 2006 read the flow as
+        the valve position); a PV flat for minutes while OP ramps, then jumping, cannot be the
+        process' own lag and dead time there.
 
     Events come back as sample indices (any sample time: every threshold is in samples or
     noise multiples). A *strong* event is one the two-model test confirms (slow or fast loop);
@@ -546,7 +561,7 @@ def detect_stick_slip(
     events: list[StickSlipEvent] = []
     strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
     noise_var = max(sig.sigma_pv**2, sig.res**2 / 12.0, 1e-300)
-    dyn = _Dynamics.of(op)
+    dyn = _Dynamics.of(op, fastest_process)
     for k, ((ev, ratio, rate, follow, kick), b) in ranked:
         fast = (
             ratio >= p.stick_slip_ratio

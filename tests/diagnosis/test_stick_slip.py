@@ -273,3 +273,14 @@ def test_best_fits_are_the_least_squares_fits() -> None:
         expected.append(float(np.sum((y - a @ coef) ** 2)))
     got = _best_fits(y, regs, signs, 5)
     assert got == pytest.approx((min(expected[:5]), min(expected[5:])), rel=1e-9)
+
+
+def test_the_linear_model_keeps_to_the_process_dynamics_it_is_given() -> None:
+    from plantcheck.diagnosis.stick_slip import DELAY_GRID, LAG_GRID, _Dynamics
+
+    op = np.linspace(40.0, 45.0, 400)
+    free = _Dynamics.of(op)
+    bounded = _Dynamics.of(op, 2.0)
+    assert free.op_lags.shape[0] == len(LAG_GRID) and free.delays.tolist() == list(DELAY_GRID)
+    assert bounded.op_lags.shape[0] == 3 and bounded.delays.tolist() == [0, 1, 2]
+    assert bounded.rise.shape == free.rise.shape  # the valve step keeps every lag
