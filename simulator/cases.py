@@ -231,13 +231,18 @@ SHORT_WINDOW_SAMPLES = 720
 
 
 def _short_window_loop(rng: np.random.Generator) -> tuple[str, Process]:
-    """A slow loop as plants have them: self-regulating with τ 40–300 s (flow through a slow
-    valve and line, pressure, temperature) or a level with its integrating dynamics."""
+    """A slow loop as plants have them: self-regulating with τ 40–300 s (an analyser,
+    pressure, temperature) or a level with its integrating dynamics.
+
+    Not a flow loop: a flow follows its valve within seconds (Kano et al. 2004 and Yamashita
+    2006 read the flow as the valve position; the chain bounds a flow loop's dynamics so), so
+    a "flow" of τ 300 s is no plant's. Until 2026-11-25 the first kind drawn here was called
+    flow; the draws are the same, only that name changed."""
     if rng.uniform() < 0.2:
         return "level", Process("integrating", K=float(rng.uniform(0.002, 0.01)), theta_s=10.0)
     tau = float(rng.uniform(40.0, 300.0))
     theta = float(rng.uniform(0.05, 0.3)) * tau
-    kind = str(rng.choice(["flow", "pressure", "temperature"]))
+    kind = str(rng.choice(["composition", "pressure", "temperature"]))
     return kind, Process("fopdt", K=float(rng.uniform(0.5, 2.0)), tau_s=tau, theta_s=theta)
 
 
