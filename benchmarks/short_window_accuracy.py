@@ -1,9 +1,10 @@
 """Stiction on the windows real plants give: two hours at 10 s of slow loops (issue 24).
 
-The family ``simulator.cases.generate_short_window_cases``: τ 40–300 s or a level, detuned PI,
-0–3 set-point steps, drifting loads, three noise levels, continuous / quantised / compressed
-PV; sticky valves with one to three stick-slip events and their healthy twins. Prints, per
-noise level and recording, the stiction recall and the false alarms on the healthy twins, then
+The family ``simulator.cases.generate_short_window_cases``: τ 40–300 s or a level with a detuned
+PI, and flows of τ 2–8 s with a slow integral (the refinery records' kind); 0–3 set-point steps,
+drifting loads, three noise levels, continuous / quantised / compressed PV; sticky valves with
+one to three stick-slip events and their healthy twins. Prints, per kind (slow, flow), noise
+level and recording, the stiction recall and the false alarms on the healthy twins, then
 how many detected sticky windows got a size (``stiction.estimate``) and its error per method.
 
     python benchmarks/short_window_accuracy.py [--seeds 1 2] [--per-cell 4] [-v]
@@ -35,7 +36,9 @@ def main() -> None:
         for c in generate_short_window_cases(seed=seed, per_cell=args.per_cell):
             r = simulate_loop(c.config)
             d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type)
-            cell = c.name.split("-noise")[1].split("-r")[0]  # e.g. "0.2-quantised"
+            # e.g. "slow 0.2-quantised": the slow loops and the flows apart
+            cell = c.name.split("-noise")[1].split("-r")[0]
+            cell = ("flow " if c.loop_type == "flow" else "slow ") + cell
             hit = d.cause == "stiction"
             found[(c.cause, cell, hit)] += 1
             if args.verbose and hit != (c.cause == "stiction"):

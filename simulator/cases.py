@@ -262,10 +262,95 @@ def valve_breakaways(mv: FloatArray, min_jump: float, min_stuck: int = 3) -> int
     return count
 
 
+def _fast_flow_loop(rng: np.random.Generator) -> tuple[str, Process]:
+    """A flow loop as the refinery records show it: the flow follows the valve within seconds
+    (τ 2–8 s, dead time 0–4 s), recorded at 10 s."""
+    tau = float(rng.uniform(2.0, 8.0))
+    proc = Process(
+        "fopdt", K=float(rng.uniform(0.5, 2.0)), tau_s=tau, theta_s=float(rng.uniform(0, 4))
+    )
+    return "flow", proc
+
+
+def _fast_flow_pi(proc: Process, rng: np.random.Generator) -> PIController:
+    """A flow controller as a 10 s record shows it: integral action that moves OP by hundredths
+    of a percent per sample (refinery-stiction-dev: OP ramps of 1–3 % over minutes), a small
+    proportional gain."""
+    return PIController(
+        Kc=float(rng.uniform(0.1, 0.4)) / proc.K, Ti_s=float(rng.uniform(100.0, 600.0))
+    )
+
+
+def _short_window_case(
+    rng: np.random.Generator,
+    noise: float,
+    recording: str,
+    fast_flow: bool,
+    max_tries: int,
+) -> tuple[str, int, int, LoopConfig, dict[str, object]]:
+    """One sticky window within the family's spec and what its healthy twin shares with it:
+    (loop type, set-point steps, stick-slip events, sticky config, the twin's settings)."""
+    ts = 10.0
+    n = SHORT_WINDOW_SAMPLES
+    dur = n * ts
+    for _ in range(max_tries):
+        if fast_flow:
+            loop_type, proc = _fast_flow_loop(rng)
+            pi = _fast_flow_pi(proc, rng)
+        else:
+            loop_type, proc = _short_window_loop(rng)
+            pi = simc_pi(proc)
+            pi = replace(
+                pi,
+                Kc=pi.Kc / float(rng.uniform(1.0, 3.0)),
+                Ti_s=pi.Ti_s * float(rng.uniform(2.0, 8.0)),
+            )
+        n_steps = int(rng.integers(0, 4))
+        times = np.sort(rng.uniform(0.1, 0.9, n_steps)) * dur
+        sizes = rng.choice([-1.0, 1.0], n_steps) * rng.uniform(1.0, 5.0, n_steps)
+        sp_steps = tuple(
+            (float(t), 50.0 + float(v)) for t, v in zip(times, np.cumsum(sizes), strict=True)
+        )
+        loads = (
+            Disturbance(random_walk_std=float(rng.uniform(0.002, 0.01))),
+            _random_loads(rng, dur, dur / 2.0, 1.0),
+        )
+        quantum = float(rng.uniform(1.0, 3.0)) * noise if recording == "quantised" else 0.0
+        compression = float(rng.uniform(1.0, 3.0)) * noise if recording == "compressed" else 0.0
+        S = float(rng.choice([1.0, 2.0, 3.0, 4.0, 6.0]))
+        J = round(S * float(rng.uniform(0.5, 1.0)), 2)
+        valve = "kano" if rng.uniform() < 0.5 else "he"
+        common: dict[str, object] = dict(
+            process=proc,
+            controller=pi,
+            sample_time_s=ts,
+            n_samples=n,
+            warmup_samples=200,
+            noise_std=noise,
+            sp_steps=sp_steps,
+            disturbances=loads,
+            pv_quantum=quantum,
+            pv_compression=compression,
+            seed=int(rng.integers(1 << 30)),
+        )
+        sticky = LoopConfig(valve=valve, S=S, J=J, **common)  # type: ignore[arg-type]
+        # a slip an engineer can see on the trend: the PV move it causes (over 20 samples for a
+        # level) stands 4 × above the noise and the recording step
+        visible = slip_on_pv(proc, J, ts) >= VISIBLE_SLIP_NOISE * max(noise, quantum, compression)
+        events = valve_breakaways(simulate_loop(sticky).mv, 0.5 * J) if visible else 0
+        if 1 <= events <= 3:
+            return loop_type, n_steps, events, sticky, common
+    raise RuntimeError(
+        f"no sticky case with 1-3 visible events in {max_tries} draws at noise {noise} "
+        f"({recording}); raise max_tries"
+    )
+
+
 def generate_short_window_cases(
-    seed: int = 1, per_cell: int = 4, max_tries: int = 300
+    seed: int = 1, per_cell: int = 4, max_tries: int = 300, fast_flows: bool = True
 ) -> Iterator[Case]:
-    """Two-hour windows at 10 s of slow loops, sticky and healthy, as real plants give them.
+    """Two-hour windows at 10 s of slow loops and of flows, sticky and healthy, as real plants
+    give them.
 
     The family issue 24 asks for: slow processes (τ 40–300 s, or a level), SIMC PI tuning
     detuned (gain / 1–3, integral time × 2–8: plants run conservative loops, and a sticky valve
@@ -279,73 +364,27 @@ def generate_short_window_cases(
     times (a family that cannot be drawn raises rather than yield cases outside its spec).
     Each sticky case has a healthy twin: the same process, tuning, noise, set-point steps,
     loads and recording, with a linear valve.
+
+    ``fast_flows`` adds, from a random stream of its own (the slow loops stay the same draws),
+    as many flow loops of the refinery records' kind: τ 2–8 s, a controller whose integral
+    moves OP by hundredths of a percent per 10 s sample (``_fast_flow_pi``).
     """
     rng = np.random.default_rng(seed)
-    ts = 10.0
-    n = SHORT_WINDOW_SAMPLES
-    dur = n * ts
-    for noise in (0.05, 0.2, 0.5):
-        for recording in ("continuous", "quantised", "compressed"):
-            for rep in range(per_cell):
-                for _ in range(max_tries):
-                    loop_type, proc = _short_window_loop(rng)
-                    pi = simc_pi(proc)
-                    pi = replace(
-                        pi,
-                        Kc=pi.Kc / float(rng.uniform(1.0, 3.0)),
-                        Ti_s=pi.Ti_s * float(rng.uniform(2.0, 8.0)),
+    kinds = [(rng, False)]
+    if fast_flows:
+        kinds.append((np.random.default_rng([seed, 2]), True))
+    for draw, fast in kinds:
+        for noise in (0.05, 0.2, 0.5):
+            for recording in ("continuous", "quantised", "compressed"):
+                for rep in range(per_cell):
+                    loop_type, n_steps, events, sticky, common = _short_window_case(
+                        draw, noise, recording, fast, max_tries
                     )
-                    n_steps = int(rng.integers(0, 4))
-                    times = np.sort(rng.uniform(0.1, 0.9, n_steps)) * dur
-                    sizes = rng.choice([-1.0, 1.0], n_steps) * rng.uniform(1.0, 5.0, n_steps)
-                    sp_steps = tuple(
-                        (float(t), 50.0 + float(v))
-                        for t, v in zip(times, np.cumsum(sizes), strict=True)
-                    )
-                    loads = (
-                        Disturbance(random_walk_std=float(rng.uniform(0.002, 0.01))),
-                        _random_loads(rng, dur, dur / 2.0, 1.0),
-                    )
-                    quantum = (
-                        float(rng.uniform(1.0, 3.0)) * noise if recording == "quantised" else 0.0
-                    )
-                    compression = (
-                        float(rng.uniform(1.0, 3.0)) * noise if recording == "compressed" else 0.0
-                    )
-                    S = float(rng.choice([1.0, 2.0, 3.0, 4.0, 6.0]))
-                    J = round(S * float(rng.uniform(0.5, 1.0)), 2)
-                    valve = "kano" if rng.uniform() < 0.5 else "he"
-                    common: dict[str, object] = dict(
-                        process=proc,
-                        controller=pi,
-                        sample_time_s=ts,
-                        n_samples=n,
-                        warmup_samples=200,
-                        noise_std=noise,
-                        sp_steps=sp_steps,
-                        disturbances=loads,
-                        pv_quantum=quantum,
-                        pv_compression=compression,
-                        seed=int(rng.integers(1 << 30)),
-                    )
-                    sticky = LoopConfig(valve=valve, S=S, J=J, **common)  # type: ignore[arg-type]
-                    # a slip an engineer can see on the trend: the PV move it causes (over
-                    # 20 samples for a level) stands 4 × above the noise and the recording step
-                    visible = slip_on_pv(proc, J, ts) >= VISIBLE_SLIP_NOISE * max(
-                        noise, quantum, compression
-                    )
-                    events = valve_breakaways(simulate_loop(sticky).mv, 0.5 * J) if visible else 0
-                    if 1 <= events <= 3:
-                        break
-                else:
-                    raise RuntimeError(
-                        f"no sticky case with 1-3 visible events in {max_tries} draws at noise "
-                        f"{noise} ({recording}); raise max_tries"
-                    )
-                tag = f"{loop_type}-steps{n_steps}-noise{noise}-{recording}-r{rep}"
-                yield Case(f"stiction-{valve}-S{S:g}-J{J:g}-events{events}-{tag}", "stiction",
-                           loop_type, sticky)  # fmt: skip
-                yield Case(f"ok-{tag}", "ok", loop_type, LoopConfig(**common))  # type: ignore[arg-type]
+                    valve, S, J = sticky.valve, sticky.S, sticky.J
+                    tag = f"{loop_type}-steps{n_steps}-noise{noise}-{recording}-r{rep}"
+                    yield Case(f"stiction-{valve}-S{S:g}-J{J:g}-events{events}-{tag}", "stiction",
+                               loop_type, sticky)  # fmt: skip
+                    yield Case(f"ok-{tag}", "ok", loop_type, LoopConfig(**common))  # type: ignore[arg-type]
 
 
 def sticky_flow_config(n_samples: int = 3600, seed: int = 3) -> LoopConfig:

@@ -203,7 +203,7 @@ def short_family() -> collections.Counter[tuple[str, bool]]:
 
 def test_short_window_family_floors(short_family: collections.Counter[tuple[str, bool]]) -> None:
     """Floors below the measured figures (benchmarks/short_window_accuracy.py, seeds 1 and
-    2: recall 0.61, false alarms 5.6 %)."""
+    2: recall 0.80, false alarms 6.9 %, slow loops and the refinery's kind of flow together)."""
     tp, fn = short_family[("stiction", True)], short_family[("stiction", False)]
     fp, tn = short_family[("ok", True)], short_family[("ok", False)]
     assert tp / (tp + fn) >= 0.5, (tp, fn)
@@ -217,6 +217,10 @@ def test_short_family_looks_like_plants() -> None:
     names = " ".join(c.name for c in cases)
     for word in ("continuous", "quantised", "compressed", "noise0.05", "noise0.5", "steps0"):
         assert word in names
+    # slow loops of every kind, and flows that follow their valve within seconds
+    kinds = {c.loop_type for c in cases}
+    assert "flow" in kinds and len(kinds - {"flow"}) >= 2, kinds
+    assert all(c.config.process.tau_s <= 8.0 for c in cases if c.loop_type == "flow")
     sticky = [c for c in cases if c.cause == "stiction"]
     assert len(sticky) == len(cases) // 2
     for c in sticky:
