@@ -314,11 +314,11 @@ def _slip_evidence(
     Two local models, each with a straight line for slow load drift and a first-order lag
     (time constants ``LAG_GRID``): *linear*, the PV follows OP through the process (dead
     times ``DELAY_GRID``, both as far as the loop's dynamics allow, gain of the controller's
-    sign); *stick-slip*, the valve stands still
-    and steps once, toward the set point, a few samples around OP's turning point ``a``. For a
-    level the valve sets the PV's slope, so both inputs are integrated. Returns the residual
-    sums of squares (linear, stick-slip): this is the "PV changes faster than the loop's own
-    dynamics allow for the OP move" of methods §4.10, read with the dynamics the data allow.
+    sign); *stick-slip*, the valve stands still and steps once, toward the set point, a few
+    samples around OP's turning point ``a``. For a level the valve sets the PV's slope, so
+    both inputs are integrated. Returns the residual sums of squares (linear, stick-slip):
+    this is the "PV changes faster than the loop's own dynamics allow for the OP move" of
+    methods §4.10, read with the dynamics the data allow.
     """
     y = pv[s : b + 1]
     n = y.size

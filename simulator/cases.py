@@ -347,7 +347,7 @@ def _short_window_case(
 
 
 def generate_short_window_cases(
-    seed: int = 1, per_cell: int = 4, max_tries: int = 300, fast_flows: bool = True
+    seed: int = 1, per_cell: int = 4, max_tries: int = 300
 ) -> Iterator[Case]:
     """Two-hour windows at 10 s of slow loops and of flows, sticky and healthy, as real plants
     give them.
@@ -365,14 +365,11 @@ def generate_short_window_cases(
     Each sticky case has a healthy twin: the same process, tuning, noise, set-point steps,
     loads and recording, with a linear valve.
 
-    ``fast_flows`` adds, from a random stream of its own (the slow loops stay the same draws),
-    as many flow loops of the refinery records' kind: τ 2–8 s, a controller whose integral
-    moves OP by hundredths of a percent per 10 s sample (``_fast_flow_pi``).
+    As many flow loops of the refinery records' kind follow, from a random stream of their own
+    (so the slow loops are the same draws as before they were added): τ 2–8 s, a controller
+    whose integral moves OP by hundredths of a percent per 10 s sample (``_fast_flow_pi``).
     """
-    rng = np.random.default_rng(seed)
-    kinds = [(rng, False)]
-    if fast_flows:
-        kinds.append((np.random.default_rng([seed, 2]), True))
+    kinds = ((np.random.default_rng(seed), False), (np.random.default_rng([seed, 2]), True))
     for draw, fast in kinds:
         for noise in (0.05, 0.2, 0.5):
             for recording in ("continuous", "quantised", "compressed"):
