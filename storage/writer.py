@@ -171,12 +171,15 @@ class SampleWriter:
         return hours, deleted
 
     async def _housekeep_slice(self) -> None:
-        """One slice of the hourly housekeeping: a site of 40,000 tags takes minutes of it."""
-        chunk, self._chores = (
-            self._chores[: self.housekeeping_slice],
-            self._chores[self.housekeeping_slice :],
-        )
-        _, deleted = await self.housekeep(chunk)
+        """One slice of the hourly housekeeping: a site of 40,000 tags takes minutes of it.
+
+        The slice's tags leave the list once their work is over (done, failed or cancelled),
+        so ``housekeeping_pending`` counts a slice still under way."""
+        chunk = self._chores[: self.housekeeping_slice]
+        try:
+            _, deleted = await self.housekeep(chunk)
+        finally:
+            self._chores = self._chores[len(chunk) :]
         self._purged += deleted
         if not self._chores and self._purged and self.retention_s is not None:
             log.info(

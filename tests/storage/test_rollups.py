@@ -108,6 +108,41 @@ def test_migration_adds_the_hour_table_to_an_older_database(tmp_path: Path) -> N
     con.close()
 
 
+def test_a_slice_under_way_is_still_pending(tmp_path: Path) -> None:
+    """``housekeeping_pending`` counts the slice being housekept: the tags left the list
+    before their work was done, so a waiter saw 0 and stopped the writer mid-purge (the slice
+    test above failed so on a loaded machine: 122 samples left)."""
+    url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    upgrade(url)
+
+    async def run() -> None:
+        store = await Store.open(url)
+        try:
+            loop = await store.ensure_loop("ONE", signals=("pv",))
+            writer = SampleWriter(
+                store, tmp_path / "buffer.db", retention_s=1800.0, housekeeping_slice=1
+            )
+            release = asyncio.Event()
+            real = writer.housekeep
+
+            async def held(tags: list[int]) -> tuple[int, int]:
+                await release.wait()  # the store's own work, once let through
+                return await real(tags)
+
+            writer.housekeep = held  # type: ignore[method-assign]
+            writer._chores = list(loop.tags.values())
+            work = asyncio.create_task(writer._housekeep_slice())
+            await asyncio.sleep(0.05)
+            assert writer.housekeeping_pending == 1  # under way, not done
+            release.set()
+            await work
+            assert writer.housekeeping_pending == 0
+        finally:
+            await store.close()
+
+    asyncio.run(run())
+
+
 def test_the_writer_housekeeps_its_own_tags_in_slices(tmp_path: Path) -> None:
     """Every hour, a few tags between two commits: its own tags rolled up (another collector's
     are not), every tag's old samples purged, the roll-ups kept."""
