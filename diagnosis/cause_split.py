@@ -18,10 +18,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import i0e, i1e
 
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf
 from plantcheck.diagnosis.oscillation import OscillationResult
-from plantcheck.diagnosis.signal_tools import FloatArray, bandpass, detrend
+from plantcheck.diagnosis.signal_tools import FloatArray, bandpass, detrend, noise_sigma
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 from plantcheck.diagnosis.stiction_vote import VoteResult
 from plantcheck.diagnosis.tuning import PIEstimate
@@ -40,12 +41,15 @@ class SplitParams:
     tuning_max_tp_ti: float = 6.0
     """Tp/Ti at or below this supports aggressive tuning (methods §3.2 suggests [1, 5]·Ti)."""
     steady_envelope_cv: float = 0.25
-    """Half-cycle amplitudes of the band-passed PV varying less than this (std/mean) are a
+    """Half-cycle amplitudes of the band-passed PV varying less than this (std/mean), once the
+    measurement noise's share of the spread is taken out (``EnvelopeSpread.cv_signal``), are a
     sustained oscillation: driven from outside. A loop ringing at its own resonance on random
     loads has the envelope of narrow-band noise, Rayleigh-distributed (Rice 1944: std/mean
-    0.52); generated aggressive loops 0.44-0.60, sinusoidal disturbances 0.00-0.16 [R]."""
+    0.52); generated aggressive loops 0.44-0.60 (0.37-0.57 without the noise), sinusoidal
+    disturbances 0.00-0.16, up to 0.47 with the noise at 2-5 x less than the cycle [R]."""
     ringing_envelope_cv: float = 0.4
-    """At or above this the oscillation rings on noise: the loop's own (aggressive tuning)."""
+    """At or above this (noise included: it is the loop's own ringing that the noise
+    excites) the oscillation rings on noise: the loop's own (aggressive tuning)."""
 
 
 @dataclass(frozen=True)
@@ -88,10 +92,11 @@ def split_cause(
             "oscillation_unknown_cause", 0.5, "OP–PV phase could not be read from the CCF"
         )
     ratio_txt = f", Tp/Ti = {tp_ti:.1f}" if tp_ti is not None else ""
-    cv = envelope_cv(pv, ts, osc.period_s)
-    if cv is not None:
-        ratio_txt += f", amplitude spread {cv:.2f}"
-        if cv <= p.steady_envelope_cv:
+    spread = envelope_spread(pv, ts, osc.period_s)
+    if spread is not None:
+        cv = spread.cv
+        ratio_txt += f", amplitude spread {cv:.2f} ({spread.cv_signal:.2f} without the noise)"
+        if spread.cv_signal <= p.steady_envelope_cv:
             return SplitResult(
                 "external_disturbance",
                 0.7,
@@ -127,17 +132,64 @@ def split_cause(
     )
 
 
-def envelope_cv(x: FloatArray, ts: float, period_s: float, band: float = 1.6) -> float | None:
-    """Spread (std/mean) of the half-cycle amplitudes of ``x`` band-passed to
-    [f0/``band``, f0·``band``] around the oscillation (period ``period_s``, s); None with fewer
-    than 4 inner half-cycles. Steady for an oscillation sustained by a periodic source, about
-    0.52 for narrow-band noise (Rice 1944), the ringing of an under-damped loop on random
-    loads."""
+@dataclass(frozen=True)
+class EnvelopeSpread:
+    """Spread (std/mean) of an oscillation's half-cycle amplitudes."""
+
+    cv: float
+    """As measured, measurement noise included."""
+    cv_signal: float
+    """With the spread that the band-passed measurement noise gives a perfectly steady cycle
+    taken out (Rice 1944: the envelope of a sinusoid plus narrow-band Gaussian noise), as a
+    share of the mean amplitude; ``cv`` itself where the cycle stands less than
+    ``MIN_CYCLE_OVER_NOISE`` over that noise, where the envelope cannot tell a steady cycle
+    from noise. A disturbance 2-5 x above the noise reads 0.2-0.5 in ``cv``, 0.0-0.2 here."""
+
+
+MIN_CYCLE_OVER_NOISE = 1.5
+"""Rice amplitude ν over the band-passed noise σ_b below which the noise is not taken out: at
+ν = 0 the envelope is Rayleigh and any spread reads as noise."""
+
+_RICE_NU = np.linspace(0.0, 40.0, 4001)
+_RICE_MEAN = np.sqrt(np.pi / 2) * (
+    (1 + _RICE_NU**2 / 2) * i0e(_RICE_NU**2 / 4) + _RICE_NU**2 / 2 * i1e(_RICE_NU**2 / 4)
+)
+"""Mean of the Rice envelope over σ against ν/σ (Rice 1944), increasing from sqrt(π/2)."""
+_RICE_VAR = 2.0 + _RICE_NU**2 - _RICE_MEAN**2
+"""Its variance over σ², from 2 − π/2 (Rayleigh) to 1 (a cycle far above the noise)."""
+
+
+def envelope_spread(
+    x: FloatArray, ts: float, period_s: float, band: float = 1.6
+) -> EnvelopeSpread | None:
+    """Spread of the half-cycle amplitudes of ``x`` band-passed to [f0/``band``, f0·``band``]
+    around the oscillation (period ``period_s``, s); None with fewer than 4 inner half-cycles.
+    Steady for an oscillation sustained by a periodic source, about 0.52 for narrow-band noise
+    (Rice 1944), the ringing of an under-damped loop on random loads.
+
+    The white measurement noise (σ from ``noise_sigma``) passes the band with the share
+    2·ts·(f_hi − f_lo) of its variance, σ_b². A steady cycle of amplitude ν in that noise has a
+    Rice envelope of mean m(ν, σ_b) and variance 2σ_b² + ν² − m²: ν is solved from the
+    measured mean, and that variance is taken out of the measured one for ``cv_signal``.
+    """
     f0 = 1.0 / period_s
-    xf = bandpass(detrend(x), ts, f0 / band, f0 * band)
+    f_lo, f_hi = f0 / band, f0 * band
+    xf = bandpass(detrend(x), ts, f_lo, f_hi)
     z = np.flatnonzero(np.diff(np.signbit(xf)))
     if z.size < 6:
         return None
     peaks = np.maximum.reduceat(np.abs(xf), z)[1:-1]
     mean = float(np.mean(peaks))
-    return float(np.std(peaks)) / mean if mean > 0 else None
+    if mean <= 0:
+        return None
+    var = float(np.var(peaks))
+    cv = math.sqrt(var) / mean
+    sigma_b = noise_sigma(x) * math.sqrt(min(1.0, 2.0 * ts * (f_hi - f_lo)))
+    if sigma_b <= 0:
+        return EnvelopeSpread(cv, cv)
+    # beyond the table the cycle stands far above the noise: variance σ_b², its last value
+    nu = float(np.interp(mean / sigma_b, _RICE_MEAN, _RICE_NU))
+    if nu < MIN_CYCLE_OVER_NOISE:
+        return EnvelopeSpread(cv, cv)
+    steady_var = sigma_b**2 * float(np.interp(mean / sigma_b, _RICE_MEAN, _RICE_VAR))
+    return EnvelopeSpread(cv, math.sqrt(max(0.0, var - steady_var)) / mean)

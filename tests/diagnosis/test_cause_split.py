@@ -8,7 +8,7 @@ import pytest
 from scipy.signal import lfilter
 
 from plantcheck.diagnosis import diagnose
-from plantcheck.diagnosis.cause_split import envelope_cv
+from plantcheck.diagnosis.cause_split import envelope_spread
 from plantcheck.simulator.cases import process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
 
@@ -17,14 +17,35 @@ def test_envelope_of_a_sine_is_steady_and_of_narrow_band_noise_spread() -> None:
     rng = np.random.default_rng(1)
     t = np.arange(6000, dtype=np.float64)
     sine = np.sin(2 * np.pi * t / 50.0) + 0.2 * rng.normal(size=t.size)
-    cv_sine = envelope_cv(sine, 1.0, 50.0)
-    assert cv_sine is not None and cv_sine < 0.15
+    spread_sine = envelope_spread(sine, 1.0, 50.0)
+    assert spread_sine is not None and spread_sine.cv < 0.15
     # white noise through a resonance (ζ = 0.05 at a 50-sample period): Rayleigh envelope
     w = 2 * np.pi / 50.0
     r = np.exp(-0.05 * w)
     ringing = lfilter([1.0], [1.0, -2 * r * np.cos(w), r * r], rng.normal(size=t.size))
-    cv_ring = envelope_cv(ringing, 1.0, 50.0)
-    assert cv_ring is not None and 0.35 < cv_ring < 0.7
+    spread_ring = envelope_spread(ringing, 1.0, 50.0)
+    assert spread_ring is not None and 0.35 < spread_ring.cv < 0.7
+    # the ringing stands far above its white part: taking the noise out keeps it spread
+    assert spread_ring.cv_signal > 0.35
+
+
+def test_the_noise_is_taken_out_of_a_steady_cycles_spread() -> None:
+    """A sine 3 x over the band-passed white noise spreads its half-cycle amplitudes as
+    ringing does (Rice 1944); without the noise's share it is steady again."""
+    rng = np.random.default_rng(2)
+    t = np.arange(6000, dtype=np.float64)
+    period = 20.0
+    sigma_white = 1.0
+    sigma_band = sigma_white * np.sqrt(2 * (1.6 - 1 / 1.6) / period)
+    x = 3 * sigma_band * np.sin(2 * np.pi * t / period) + rng.normal(0, sigma_white, t.size)
+    spread = envelope_spread(x, 1.0, period)
+    assert spread is not None
+    assert spread.cv > 0.25
+    assert spread.cv_signal < 0.15
+    # barely over the noise (Rayleigh-like envelope) the spread is left as measured
+    weak = 0.5 * sigma_band * np.sin(2 * np.pi * t / period) + rng.normal(0, sigma_white, t.size)
+    spread_weak = envelope_spread(weak, 1.0, period)
+    assert spread_weak is not None and spread_weak.cv_signal == spread_weak.cv
 
 
 @pytest.mark.parametrize("multiple", [0.7, 1.0, 1.5])
@@ -47,6 +68,30 @@ def test_a_disturbance_at_the_loops_own_period_is_external(multiple: float) -> N
     run = simulate_loop(cfg)
     d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type="pressure", quantify=False)
     assert d.cause == "external_disturbance", d.notes
+
+
+@pytest.mark.parametrize("kind", ["pressure", "temperature", "flow"])
+def test_a_disturbance_near_the_loops_period_is_external_in_heavy_noise(kind: str) -> None:
+    """A sinusoidal load at 0.6 × the ultimate period, its cycle in PV only 2-5 × the
+    band-passed noise (σ 0.5 %): the noise alone spreads the half-cycle amplitudes as ringing
+    does. Before the noise's share was taken out, all 12 read aggressive tuning."""
+    su = process_setup(kind)
+    for seed in range(1, 5):
+        cfg = LoopConfig(
+            process=su.process,
+            controller=su.pi,
+            sample_time_s=su.ts,
+            n_samples=3600,
+            warmup_samples=int(20 * su.tu / su.ts) + 200,
+            noise_std=0.5,
+            seed=seed,
+            disturbances=(
+                Disturbance(where="load", sine_amplitude=2.0, sine_period_s=0.6 * su.tu),
+            ),
+        )
+        run = simulate_loop(cfg)
+        d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type=kind, quantify=False)
+        assert d.cause == "external_disturbance", (seed, d.notes)
 
 
 def test_an_aggressive_loop_ringing_on_random_loads_is_tuning() -> None:
