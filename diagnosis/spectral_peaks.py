@@ -16,7 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from plantcheck.diagnosis.acf_regularity import thornhill_regularity
-from plantcheck.diagnosis.signal_tools import FloatArray, bandpass, moving_average, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    bandpass,
+    median,
+    moving_average,
+    noise_sigma,
+)
 
 
 @dataclass(frozen=True)
@@ -57,7 +63,7 @@ def _peak_ratios(smooth: FloatArray, cand: np.ndarray) -> FloatArray:
     for k, c in enumerate(cand.tolist()):
         idx = np.arange(max(1, c // 2), min(int(smooth.size), 2 * c + 1))
         ring = idx[(idx < 0.8 * c) | (idx > 1.25 * c)]
-        ratios[k] = smooth[c] / float(np.median(smooth[ring])) if ring.size else 0.0
+        ratios[k] = smooth[c] / median(smooth[ring]) if ring.size else 0.0
     return ratios
 
 
