@@ -9,7 +9,7 @@ from scipy.signal import lfilter
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.cause_split import envelope_spread
-from plantcheck.simulator.cases import process_setup
+from plantcheck.simulator.cases import generate_cases, process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
 
 
@@ -109,3 +109,18 @@ def test_an_aggressive_loop_ringing_on_random_loads_is_tuning() -> None:
     run = simulate_loop(cfg)
     d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type="pressure", quantify=False)
     assert d.cause == "aggressive_tuning", d.notes
+
+
+def test_one_stiction_test_alone_leaves_the_split_to_read_the_cycle() -> None:
+    """An aggressive level loop whose only stiction vote is the curve fit (a lightly damped
+    linear cycle passes it too, and no other test applies against it): the vote is no
+    verdict, so the split reads the cycle instead of calling the cause unknown."""
+    case = next(
+        c
+        for c in generate_cases(seed=2, lengths=(1000, 5000))
+        if c.cause == "aggressive_tuning" and c.name.endswith("level-n5000-noise0.05-r0")
+    )
+    run = simulate_loop(case.config)
+    d = diagnose(run.pv, run.op, case.config.sample_time_s, sp=run.sp, loop_type="level")
+    assert d.cause == "aggressive_tuning", d.notes
+    assert any("stiction not confirmed (1 test for, 0 against)" in n for n in d.notes), d.notes
