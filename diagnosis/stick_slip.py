@@ -199,6 +199,23 @@ def _resolution(x: FloatArray) -> float:
     return float(np.median(nz)) if zero_share > 0.3 else 0.0
 
 
+def _recording_variance(x: FloatArray, res: float, on_grid: float = 0.9) -> float:
+    """Variance of the recording error of a signal of resolution ``res`` (0 if continuous).
+
+    A quantised signal sits on a grid of step ``res`` and is rounded to it: error uniform over
+    ±res/2, variance res²/12. A compressed one is held until it has moved by its dead band,
+    about one recorded step, and then stored as it is (off any grid): its error spreads over
+    ±res, variance up to res²/3 (uniform; Thornhill et al. 2004 on the data compression of
+    process historians), which is what is allowed for. The grid is the one ``on_grid`` of the
+    values sit on within 5 % of a step.
+    """
+    if res <= 0:
+        return 0.0
+    frac = (x - x[0]) / res
+    near = np.abs(frac - np.round(frac)) <= 0.05
+    return res * res / (12.0 if np.mean(near) >= on_grid else 3.0)
+
+
 def _turning_points(x: FloatArray, prominence: float) -> IntArray:
     """Alternating maxima and minima of ``x`` with at least ``prominence`` (indices, sorted)."""
     hi, lo = prominent_extremes(x, prominence)
@@ -401,7 +418,7 @@ def _moves_after(
         steps = np.cumsum(steps, axis=1)
     signs = np.repeat([float(gain_sign), 0.0], (len(lin), len(steps)))
     sse_follow, sse_stuck = _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
-    noise_var = max(sig.sigma_pv**2, sig.res**2 / 12.0, 1e-300)
+    noise_var = sig.noise_var
     return (
         sse_stuck >= p.after_ratio * sse_follow
         and (sse_stuck - sse_follow) / noise_var >= p.after_chi2
@@ -512,6 +529,7 @@ class _Signals:
     sigma_op: float
     sigma_pv: float
     res: float
+    res_var: float
     w: int
     n: int
     cum_e: FloatArray
@@ -529,11 +547,16 @@ class _Signals:
         def run(x: FloatArray) -> FloatArray:
             return np.concatenate(([0.0], np.cumsum(x)))
 
-        sigma_y, sigma_op, sigma_pv, res = noise
+        sigma_y, sigma_op, sigma_pv, res, res_var = noise
         return cls(
-            ys, ops, sigma_y, sigma_op, sigma_pv, res, w, int(ys.size),
+            ys, ops, sigma_y, sigma_op, sigma_pv, res, res_var, w, int(ys.size),
             run(e), run(yc), run(yc * yc), run(k * yc),
         )  # fmt: skip
+
+    @property
+    def noise_var(self) -> float:
+        """Variance of the PV's noise: the measurement's, or its recording error's."""
+        return max(self.sigma_pv**2, self.res_var, 1e-300)
 
     def mean_e(self, lo: int, hi: int) -> float:
         """Mean control error over samples [lo, hi)."""
@@ -600,6 +623,7 @@ def detect_stick_slip(
     # a level's slope, per sample, stands in for the valve position of an integrating loop
     y = np.gradient(moving_average(pv, 2 * w + 1)) if integrating else pv
     sigma_pv = noise_sigma(pv)
+    res = 0.0 if integrating else _resolution(pv)
     sig = _Signals.of(
         moving_average(y, w),
         moving_average(op, w),
@@ -609,7 +633,8 @@ def detect_stick_slip(
             max((noise_sigma(y) if integrating else sigma_pv) / math.sqrt(w), 1e-12),
             max(noise_sigma(op) / math.sqrt(w), 1e-12),
             sigma_pv,
-            0.0 if integrating else _resolution(pv),
+            res,
+            _recording_variance(pv, res),
         ),
     )
     turns = _turning_points(sig.ops, p.op_turn_sigma * sig.sigma_op)
@@ -630,7 +655,7 @@ def detect_stick_slip(
         ranked += [(k + spare, cb) for k, cb in enumerate(jumps)]
     events: list[StickSlipEvent] = []
     strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
-    noise_var = max(sig.sigma_pv**2, sig.res**2 / 12.0, 1e-300)
+    noise_var = sig.noise_var
     dyn = _Dynamics.of(op, fastest_process)
     sp_steps = np.flatnonzero(np.diff(sp) != 0) + 1
     for k, ((ev, ratio, rate, follow, kick), b) in ranked:

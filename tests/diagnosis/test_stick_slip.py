@@ -15,6 +15,8 @@ from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.chain import ChainParams
 from plantcheck.diagnosis.stick_slip import (
     StickSlipParams,
+    _recording_variance,
+    _resolution,
     detect_stick_slip,
     process_gain,
     size_from_events,
@@ -312,3 +314,24 @@ def test_the_linear_model_keeps_to_the_process_dynamics_it_is_given() -> None:
     assert free.op_lags.shape[0] == len(LAG_GRID) and free.delays.tolist() == list(DELAY_GRID)
     assert bounded.op_lags.shape[0] == 3 and bounded.delays.tolist() == [0, 1, 2]
     assert bounded.rise.shape == free.rise.shape  # the valve step keeps every lag
+
+
+def test_the_recording_error_of_a_quantised_and_of_a_compressed_pv() -> None:
+    """A quantised PV is rounded to its grid (variance step²/12); a compressed one is held
+    until it has moved by the dead band and stored off any grid: its error spreads over
+    ±the dead band, up to 4 x more (step²/3), which the two-model test must allow for."""
+    rng = np.random.default_rng(3)
+    true = 50.0 + np.cumsum(rng.normal(0.0, 0.05, 5000))
+    quantised = np.round(true / 0.25) * 0.25
+    res_q = _resolution(quantised)
+    assert res_q == pytest.approx(0.25)
+    assert _recording_variance(quantised, res_q) == pytest.approx(0.25**2 / 12)
+    held = np.empty_like(true)
+    held[0] = true[0]
+    for k in range(1, true.size):
+        held[k] = true[k] if abs(true[k] - held[k - 1]) > 0.25 else held[k - 1]
+    res_c = _resolution(held)
+    assert _recording_variance(held, res_c) == pytest.approx(res_c**2 / 3)
+    # the hold error lies between a rounding's and the bound
+    assert res_c**2 / 12 < float(np.var(held - true)) <= res_c**2 / 3
+    assert _recording_variance(true, _resolution(true)) == 0.0
