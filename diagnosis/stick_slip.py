@@ -99,8 +99,8 @@ class StickSlipParams:
     'slip' was a load change. Generated windows (seeds 1-2) with the ratio at 2.5: healthy
     loops under coloured loads 4 -> 1 of 24 read stiction, one aggressive plant window no
     longer, no sticky window of any set or real record lost; at 2 a sticky plant window is
-    lost, at 3 and 4 three and four coloured-load loops still read stiction; χ² from 50 to 200
-    changes nothing at 2.5-3 [R]."""
+    lost, at 3 and 4 three and four coloured-load loops still read stiction; at 2.5 a χ² of 50
+    reads the same, 200 lets one more coloured-load loop read stiction [R]."""
     min_after_samples: int = 10
     """Fewest samples after the slip for that test ..."""
     max_after_samples: int = 200
@@ -418,10 +418,9 @@ def _moves_after(
         steps = np.cumsum(steps, axis=1)
     signs = np.repeat([float(gain_sign), 0.0], (len(lin), len(steps)))
     sse_follow, sse_stuck = _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
-    noise_var = sig.noise_var
     return (
         sse_stuck >= p.after_ratio * sse_follow
-        and (sse_stuck - sse_follow) / noise_var >= p.after_chi2
+        and (sse_stuck - sse_follow) / sig.noise_var >= p.after_chi2
     )
 
 
