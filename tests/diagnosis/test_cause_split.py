@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from plantcheck.diagnosis import diagnose
+from plantcheck.diagnosis import Diagnosis, diagnose
 from plantcheck.diagnosis.cause_split import envelope_spread
 from plantcheck.simulator.cases import generate_cases, process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
@@ -48,25 +48,33 @@ def test_the_noise_is_taken_out_of_a_steady_cycles_spread() -> None:
     assert spread_weak is not None and spread_weak.cv_signal == spread_weak.cv
 
 
-@pytest.mark.parametrize("multiple", [0.7, 1.0, 1.5])
-def test_a_disturbance_at_the_loops_own_period_is_external(multiple: float) -> None:
-    """A sinusoidal load at 0.7-1.5 × the ultimate period of a well-tuned loop: the OP-PV
-    phase reads like the loop's own oscillation, the steady amplitude does not."""
-    su = process_setup("pressure")
+def _sine_load_diagnosis(
+    kind: str, amplitude: float, multiple: float, *, noise: float, seed: int
+) -> Diagnosis:
+    """A well-tuned loop of ``kind`` under a sinusoidal load of ``amplitude`` % at
+    ``multiple`` × its ultimate period, 3,600 samples, diagnosed."""
+    su = process_setup(kind)
     cfg = LoopConfig(
         process=su.process,
         controller=su.pi,
         sample_time_s=su.ts,
         n_samples=3600,
         warmup_samples=int(20 * su.tu / su.ts) + 200,
-        noise_std=0.2,
-        seed=7,
+        noise_std=noise,
+        seed=seed,
         disturbances=(
-            Disturbance(where="load", sine_amplitude=4.0, sine_period_s=multiple * su.tu),
+            Disturbance(where="load", sine_amplitude=amplitude, sine_period_s=multiple * su.tu),
         ),
     )
     run = simulate_loop(cfg)
-    d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type="pressure", quantify=False)
+    return diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type=kind, quantify=False)
+
+
+@pytest.mark.parametrize("multiple", [0.7, 1.0, 1.5])
+def test_a_disturbance_at_the_loops_own_period_is_external(multiple: float) -> None:
+    """A sinusoidal load at 0.7-1.5 × the ultimate period of a well-tuned loop: the OP-PV
+    phase reads like the loop's own oscillation, the steady amplitude does not."""
+    d = _sine_load_diagnosis("pressure", 4.0, multiple, noise=0.2, seed=7)
     assert d.cause == "external_disturbance", d.notes
 
 
@@ -75,22 +83,8 @@ def test_a_disturbance_near_the_loops_period_is_external_in_heavy_noise(kind: st
     """A sinusoidal load at 0.6 × the ultimate period, its cycle in PV only 2-5 × the
     band-passed noise (σ 0.5 %): the noise alone spreads the half-cycle amplitudes as ringing
     does. Before the noise's share was taken out, all 12 read aggressive tuning."""
-    su = process_setup(kind)
     for seed in range(1, 5):
-        cfg = LoopConfig(
-            process=su.process,
-            controller=su.pi,
-            sample_time_s=su.ts,
-            n_samples=3600,
-            warmup_samples=int(20 * su.tu / su.ts) + 200,
-            noise_std=0.5,
-            seed=seed,
-            disturbances=(
-                Disturbance(where="load", sine_amplitude=2.0, sine_period_s=0.6 * su.tu),
-            ),
-        )
-        run = simulate_loop(cfg)
-        d = diagnose(run.pv, run.op, su.ts, sp=run.sp, loop_type=kind, quantify=False)
+        d = _sine_load_diagnosis(kind, 2.0, 0.6, noise=0.5, seed=seed)
         assert d.cause == "external_disturbance", (seed, d.notes)
 
 
