@@ -330,6 +330,18 @@ class _Dynamics:
         return cls(first_order_lags(padded, poles), delays, rise, pad)
 
 
+def _linear_rows(dyn: _Dynamics, lo: int, n: int, integrating: bool) -> FloatArray:
+    """The linear model's regressors on samples [lo, lo + n): OP delayed by each dead time,
+    through each lag, (delays × lags, n); for a level, whose valve sets the PV's slope,
+    integrated."""
+    k = np.arange(n)
+    starts = dyn.pad + lo - dyn.delays
+    lin = dyn.op_lags[:, starts[:, None] + k].swapaxes(0, 1).reshape(-1, n)
+    if integrating:
+        lin = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
+    return np.asarray(lin, dtype=np.float64)
+
+
 def _slip_evidence(
     pv: FloatArray,
     dyn: _Dynamics,
@@ -354,16 +366,13 @@ def _slip_evidence(
     y = pv[s : b + 1]
     n = y.size
     k = np.arange(n)
-    # OP delayed by each dead time, through each lag: (delays × lags, n)
-    starts = dyn.pad + s - dyn.delays
-    lin = dyn.op_lags[:, starts[:, None] + k].swapaxes(0, 1).reshape(-1, n)
+    lin = _linear_rows(dyn, s, n, integrating)
     # a valve step a few samples around the turn, through each lag: (offsets × lags, n)
     since = k[None, :] - np.arange(a - s - 8, a - s + 3, 2)[:, None]
     rise = dyn.rise[:, np.clip(since, 0, dyn.rise.shape[1] - 1)].swapaxes(0, 1)
     steps = np.where(since[:, None, :] >= 0, rise, 0.0)
     steps = steps.reshape(-1, n)
     if integrating:
-        lin = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
         steps = np.cumsum(steps, axis=1)
     signs = np.repeat([float(gain_sign), toward], (len(lin), len(steps)))
     return _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
@@ -406,15 +415,13 @@ def _moves_after(
     y = pv[lo : hi + 1]
     n = y.size
     k = np.arange(n)
-    starts = dyn.pad + lo - dyn.delays
-    lin = dyn.op_lags[:, starts[:, None] + k].swapaxes(0, 1).reshape(-1, n)
+    lin = _linear_rows(dyn, lo, n, integrating)
     # the slip's response goes on (from the breakaway or around its end), or the valve slips
     # once more, either way
     origins = np.asarray([ev.breakaway, lo - 6, lo - 4, lo - 2, lo])
     since = np.clip(k[None, :] + lo - origins[:, None], 0, dyn.rise.shape[1] - 1)
     steps = dyn.rise[:, since].swapaxes(0, 1).reshape(-1, n)
     if integrating:
-        lin = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
         steps = np.cumsum(steps, axis=1)
     signs = np.repeat([float(gain_sign), 0.0], (len(lin), len(steps)))
     sse_follow, sse_stuck = _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))

@@ -27,7 +27,14 @@ from plantcheck.simulator.cases import (
     slip_on_pv,
     valve_breakaways,
 )
-from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
+from plantcheck.simulator.loop import (
+    Disturbance,
+    LoopConfig,
+    PIController,
+    Process,
+    recorded_pv,
+    simulate_loop,
+)
 
 
 def _slow_loop(**kw: object) -> LoopConfig:
@@ -322,14 +329,11 @@ def test_the_recording_error_of_a_quantised_and_of_a_compressed_pv() -> None:
     ±the dead band, up to 4 x more (step²/3), which the two-model test must allow for."""
     rng = np.random.default_rng(3)
     true = 50.0 + np.cumsum(rng.normal(0.0, 0.05, 5000))
-    quantised = np.round(true / 0.25) * 0.25
+    quantised = recorded_pv(true, quantum=0.25)
     res_q = _resolution(quantised)
     assert res_q == pytest.approx(0.25)
     assert _recording_variance(quantised, res_q) == pytest.approx(0.25**2 / 12)
-    held = np.empty_like(true)
-    held[0] = true[0]
-    for k in range(1, true.size):
-        held[k] = true[k] if abs(true[k] - held[k - 1]) > 0.25 else held[k - 1]
+    held = recorded_pv(true, compression=0.25)
     res_c = _resolution(held)
     assert _recording_variance(held, res_c) == pytest.approx(res_c**2 / 3)
     # the hold error lies between a rounding's and the bound
