@@ -40,7 +40,12 @@ from plantcheck.diagnosis.shape_tests import (
     significant_half_cycles,
 )
 from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average, noise_sigma
-from plantcheck.diagnosis.step_response import sp_step_responses, step_slowness
+from plantcheck.diagnosis.step_response import (
+    StepResponse,
+    all_creep,
+    sp_step_responses,
+    step_slowness,
+)
 from plantcheck.diagnosis.stick_slip import (
     StickSlipParams,
     StickSlipResult,
@@ -368,7 +373,10 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
     idle_sluggish = ii is not None and ii > p.tuning.idle_limit
     sluggish = idle_sluggish
     steps = np.asarray(win.steps, dtype=np.int64)
-    responses = sp_step_responses(win.pv, win.sp, steps)
+    responses = sp_step_responses(
+        win.pv, win.sp, steps, op=win.op, gain_sign=run.gain_sign,
+        jump_horizon=p.stick_slip.jump_horizon,
+    )  # fmt: skip
     slowness = step_slowness(responses)
     diag.indices["sp_step_slowness"] = slowness
     recoveries = () if is_integrating(run.loop_type) else load_recoveries(win.pv, win.sp, steps)
@@ -398,14 +406,23 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
         # change toward SP then looks like a slip. A sticky valve holds the PV while OP
         # moves and slips against it (index <= 0), unless it does not move at all. Between
         # set-point steps the index reads the tail of a step response, which creeps toward
-        # SP in any loop: there it cannot overrule the events.
-        after_steps = bool(win.steps)
-        if not idle_sluggish or events.unresponsive is not None or after_steps:
+        # SP in any loop: there it cannot overrule the events, but the step responses can,
+        # when every one of them is a sluggish PI's creep and no event slips inside one (a
+        # sticky valve under a sluggish controller slips on its way to the new SP).
+        creeps = all_creep(
+            responses, p.tuning.step_slowness_limit, p.tuning.creep_max_jump
+        ) and not _slips_during(events, responses)
+        aside = (idle_sluggish and not win.steps) or creeps
+        if not aside or events.unresponsive is not None:
             _stiction_from_events(diag, events, win.pv, win.op, run.gain_sign)
             return
         diag.notes.append(
             "stick-slip events set aside: the loop recovers like a sluggish one "
-            f"(idle index {ii:.2f})"
+            + (
+                f"(every set-point step answered with a creep, {len(responses)} of them)"
+                if creeps
+                else f"(idle index {ii:.2f})"
+            )
         )
     if sluggish and slowness is not None:
         diag.cause = "sluggish_tuning"
@@ -420,6 +437,13 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
         diag.cause = "ok"
         diag.confidence = 0.7 if ii is not None else 0.6
     diag.actions = [action_for(diag.cause)]
+
+
+def _slips_during(events: StickSlipResult, responses: tuple[StepResponse, ...]) -> bool:
+    """True when a stick-slip event breaks away while the PV is settling after a set-point
+    step (between the step and three closed-loop time constants after its dead time)."""
+    spans = [r.settling for r in responses if r.settling is not None]
+    return any(lo <= ev.breakaway <= hi for ev in events.events for lo, hi in spans)
 
 
 def _judge_oscillation(run: _Run, st: _Stretch) -> None:

@@ -36,6 +36,13 @@ class StepResponse:
     time_constant: int | None
     observed: int
     overshoot: float
+    jump: float | None = None
+    """Largest PV move over ``jump_horizon`` samples while the PV rose from 20 % to 63 % of the
+    step, as a share of the step; None when the rise was not seen."""
+    op_pushes: bool | None = None
+    """OP had moved, at the 63 % point, at least as far as its proportional kick, in the
+    direction that moves the PV toward the new set point: the integral action kept pushing.
+    None when OP was not given or the rise was not seen."""
 
     @property
     def slowness(self) -> float:
@@ -43,6 +50,25 @@ class StepResponse:
         reached 63 %."""
         tau = self.time_constant if self.time_constant is not None else self.observed
         return tau / max(self.dead_time, MIN_DEAD_TIME)
+
+    @property
+    def settling(self) -> tuple[int, int] | None:
+        """Samples [step, 95 % settled] (dead time and three closed-loop time constants), or
+        None when the PV never reached 63 %."""
+        if self.time_constant is None:
+            return None
+        return self.start, self.start + self.dead_time + 3 * self.time_constant
+
+    def creeps(self, slowness_limit: float, max_jump: float) -> bool:
+        """A sluggish PI's answer: slower than ``slowness_limit`` dead times, OP pushing on
+        past its kick, and the PV following without a jump of ``max_jump`` of the step."""
+        return (
+            self.time_constant is not None
+            and self.slowness > slowness_limit
+            and self.jump is not None
+            and self.jump < max_jump
+            and bool(self.op_pushes)
+        )
 
 
 MIN_DEAD_TIME = 2
@@ -58,6 +84,9 @@ def sp_step_responses(
     min_step_noise: float = 6.0,
     baseline: int = 5,
     smooth: int = 5,
+    op: FloatArray | None = None,
+    gain_sign: int = 1,
+    jump_horizon: int = 8,
 ) -> tuple[StepResponse, ...]:
     """The response of PV to each set-point step at sample indices ``steps``.
 
@@ -67,6 +96,12 @@ def sp_step_responses(
     τ_cl are those of the first order plus dead time through its 20 % and 63 % points
     (τ = (t63 − t20)/0.777, θ = t20 − 0.223·τ): robust to noise where the first visible move
     is not.
+
+    With ``op`` (and the process gain's sign ``gain_sign``) each response also says how the PV
+    rose (``jump``: its largest move over ``jump_horizon`` samples) and whether OP, averaged
+    the same way, kept pushing past its proportional kick (``op_pushes``; the kick is read
+    two samples after the step). That tells a sluggish PI's creep from a sticky valve's
+    answer (``StepResponse.creeps``).
     """
     sigma = noise_sigma(pv)
     out: list[StepResponse] = []
@@ -85,10 +120,38 @@ def sp_step_responses(
             out.append(StepResponse(k, size, start, None, nxt - k - start, overshoot))
             continue
         # first order plus dead time through the 20 % and 63 % points (two-point method)
-        tau = max(1, round((int(t63[0]) - int(t20[0])) / 0.777))
-        theta = max(0, round(int(t20[0]) - 0.223 * tau))
-        out.append(StepResponse(k, size, theta, tau, nxt - k - theta, overshoot))
+        i20, i63 = int(t20[0]), int(t63[0])
+        tau = max(1, round((i63 - i20) / 0.777))
+        theta = max(0, round(i20 - 0.223 * tau))
+        rise = y[max(0, i20 - jump_horizon) : i63 + jump_horizon + 1]
+        jump = (
+            float(np.max(np.abs(rise[jump_horizon:] - rise[:-jump_horizon])))
+            if rise.size > jump_horizon
+            else None
+        )
+        pushes = None
+        if op is not None:
+            toward = gain_sign * np.sign(size)
+            u = toward * (
+                moving_average(op[k:nxt], smooth) - float(np.mean(op[max(0, k - baseline) : k]))
+            )
+            kick = float(u[min(2, u.size - 1)])
+            pushes = bool(u[i63] > 0 and u[i63] >= kick)
+        out.append(StepResponse(k, size, theta, tau, nxt - k - theta, overshoot, jump, pushes))
     return tuple(out)
+
+
+def all_creep(responses: tuple[StepResponse, ...], slowness_limit: float, max_jump: float) -> bool:
+    """Every set-point step in the window answered with a sluggish PI's creep (at least one).
+
+    A sluggish PI answers a step with a small proportional kick and then an integral action
+    that keeps pushing OP the same way, and the PV follows smoothly, many dead times slow. A
+    sticky valve answers with a slip (a jump), or, when the kick breaks it loose at once, it
+    holds while OP turns back under the proportional action and the PV runs on through the
+    process' own lag: OP then ends short of its kick. Where every step creeps, the loop's own
+    answer says sluggish, whatever else the window holds [R, generated windows: see
+    ``TuningParams.creep_max_jump``]."""
+    return bool(responses) and all(r.creeps(slowness_limit, max_jump) for r in responses)
 
 
 def step_slowness(responses: tuple[StepResponse, ...]) -> float | None:

@@ -1,5 +1,6 @@
 """diagnosis/step_response.py: set-point step responses judge the tuning, and a healthy slow
-loop is not sluggish (issue 25 item 2)."""
+loop is not sluggish (issue 25 item 2); a sluggish PI answers every step with a creep, which
+sets aside stick-slip events that are load changes."""
 
 from __future__ import annotations
 
@@ -9,9 +10,16 @@ import numpy as np
 import pytest
 
 from plantcheck.diagnosis import diagnose
-from plantcheck.diagnosis.step_response import sp_step_responses, step_slowness
+from plantcheck.diagnosis.step_response import (
+    StepResponse,
+    all_creep,
+    sp_step_responses,
+    step_slowness,
+)
+from plantcheck.diagnosis.tuning import TuningParams, identify_pi
 from plantcheck.simulator.cases import process_setup
-from plantcheck.simulator.loop import LoopConfig, simulate_loop
+from plantcheck.simulator.loop import LoopConfig, LoopRecord, simulate_loop
+from plantcheck.simulator.plant_windows import PlantWindowCase, generate_plant_window_cases
 
 
 def _stepped(
@@ -81,3 +89,64 @@ def test_steps_too_close_for_the_oscillation_tests_still_judge_the_tuning(sluggi
     d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type="pressure", quantify=False)
     assert d.cause == ("sluggish_tuning" if sluggish else "ok"), d.notes
     assert any("set-point step response(s) alone" in n for n in d.notes)
+
+
+def _responses(cfg: LoopConfig, ts: float) -> tuple[StepResponse, ...]:
+    run = simulate_loop(cfg)
+    steps = np.flatnonzero(np.abs(np.diff(run.sp)) > 1.0) + 1
+    gain_sign = identify_pi(run.op, run.pv, run.sp, ts).gain_sign
+    return sp_step_responses(run.pv, run.sp, steps, op=run.op, gain_sign=gain_sign)
+
+
+@pytest.mark.parametrize("pname", ["flow", "pressure", "temperature", "composition"])
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_sluggish_pi_answers_every_step_with_a_creep(pname: str, seed: int) -> None:
+    """Gain × 0.2 and integral time × 5: a small kick, then the integral action pushes OP on
+    and the PV follows without a jump, many dead times slow. SIMC's answer is no creep."""
+    limit, jump = TuningParams().step_slowness_limit, TuningParams().creep_max_jump
+    assert all_creep(_responses(*_stepped(pname, sluggish=True, seed=seed)), limit, jump)
+    assert not all_creep(_responses(*_stepped(pname, sluggish=False, seed=seed)), limit, jump)
+
+
+@pytest.mark.parametrize("pname", ["flow", "pressure", "temperature", "composition"])
+@pytest.mark.parametrize("valve", ["kano", "he"])
+def test_a_sticky_valve_does_not_creep(pname: str, valve: str) -> None:
+    """A sticky valve answers a step with a slip, or holds after its kick broke it loose
+    while OP turns back and the PV runs on through the process' lag: not a creep."""
+    cfg, ts = _stepped(pname, sluggish=False, seed=3)
+    responses = _responses(replace(cfg, valve=valve, S=3.0, J=2.0), ts)
+    assert responses
+    tp = TuningParams()
+    assert not all_creep(responses, tp.step_slowness_limit, tp.creep_max_jump)
+
+
+def _plant_window(name: str) -> tuple[LoopRecord, PlantWindowCase]:
+    case = next(c for c in generate_plant_window_cases(seed=1) if c.case.name == name)
+    return simulate_loop(case.case.config), case
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "sluggish_tuning-temperature2-n2000-steps1-free-continuous-noise0.05-r0",
+        "sluggish_tuning-flow-n3600-steps2-limit70-quantised-noise0.2-r1",
+    ],
+)
+def test_slips_beside_creeping_step_responses_are_load_changes(name: str) -> None:
+    """A sluggish loop leaves a load step standing and its return looks like a slip; its
+    set-point steps, answered with a creep, say sluggish (these read stiction before)."""
+    run, case = _plant_window(name)
+    ts = case.case.config.sample_time_s
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type=case.case.loop_type, quantify=False)
+    assert d.cause == "sluggish_tuning", d.notes
+    assert d.stiction.events, "the events stay listed for the engineer to check"
+    assert any("answered with a creep" in n for n in d.notes), d.notes
+
+
+def test_a_slip_while_the_pv_settles_keeps_the_sticky_verdict() -> None:
+    """A sticky valve under a sluggish controller (He, S 3 %, J 2 %, flow) creeps through
+    its set-point steps too, but slips on the way: the events stand."""
+    cfg, ts = _stepped("flow", sluggish=True, seed=4)
+    run = simulate_loop(replace(cfg, valve="he", S=3.0, J=2.0))
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type="flow", quantify=False)
+    assert d.cause == "stiction", d.notes
