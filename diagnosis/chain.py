@@ -442,7 +442,7 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
 def _slips_during(events: StickSlipResult, responses: tuple[StepResponse, ...]) -> bool:
     """True when a stick-slip event breaks away while the PV is settling after a set-point
     step (between the step and three closed-loop time constants after its dead time)."""
-    spans = [r.settling for r in responses if r.settling is not None]
+    spans = [r.settling for r in responses]
     return any(lo <= ev.breakaway <= hi for ev in events.events for lo, hi in spans)
 
 

@@ -38,11 +38,13 @@ class StepResponse:
     overshoot: float
     jump: float | None = None
     """Largest PV move over ``jump_horizon`` samples while the PV rose from 20 % to 63 % of the
-    step, as a share of the step; None when the rise was not seen."""
+    step (or to the next step, when it never reached 63 %), as a share of the step; None when
+    the PV never reached 20 %."""
     op_pushes: bool | None = None
-    """OP had moved, at the 63 % point, at least as far as its proportional kick, in the
-    direction that moves the PV toward the new set point: the integral action kept pushing.
-    None when OP was not given or the rise was not seen."""
+    """OP had moved, at the 63 % point (or the last sample before the next step), at least as
+    far as its proportional kick, in the direction that moves the PV toward the new set point:
+    the integral action kept pushing. None when OP was not given or the PV never reached
+    20 %."""
 
     @property
     def slowness(self) -> float:
@@ -52,19 +54,18 @@ class StepResponse:
         return tau / max(self.dead_time, MIN_DEAD_TIME)
 
     @property
-    def settling(self) -> tuple[int, int] | None:
-        """Samples [step, 95 % settled] (dead time and three closed-loop time constants), or
-        None when the PV never reached 63 %."""
+    def settling(self) -> tuple[int, int]:
+        """Samples [step, 95 % settled]: dead time and three closed-loop time constants, or
+        the whole stretch to the next step when the PV never reached 63 %."""
         if self.time_constant is None:
-            return None
+            return self.start, self.start + self.dead_time + self.observed
         return self.start, self.start + self.dead_time + 3 * self.time_constant
 
     def creeps(self, slowness_limit: float, max_jump: float) -> bool:
         """A sluggish PI's answer: slower than ``slowness_limit`` dead times, OP pushing on
         past its kick, and the PV following without a jump of ``max_jump`` of the step."""
         return (
-            self.time_constant is not None
-            and self.slowness > slowness_limit
+            self.slowness > slowness_limit
             and self.jump is not None
             and self.jump < max_jump
             and bool(self.op_pushes)
@@ -115,14 +116,12 @@ def sp_step_responses(
         t20 = np.flatnonzero(y >= 0.2)
         t63 = np.flatnonzero(y >= 0.63)
         overshoot = max(0.0, float(np.max(y)) - 1.0)
-        if t20.size == 0 or t63.size == 0:
-            start = int(t20[0]) if t20.size else 0
-            out.append(StepResponse(k, size, start, None, nxt - k - start, overshoot))
+        if t20.size == 0:
+            out.append(StepResponse(k, size, 0, None, nxt - k, overshoot))
             continue
-        # first order plus dead time through the 20 % and 63 % points (two-point method)
-        i20, i63 = int(t20[0]), int(t63[0])
-        tau = max(1, round((i63 - i20) / 0.777))
-        theta = max(0, round(i20 - 0.223 * tau))
+        i20 = int(t20[0])
+        # the rise read to the 63 % point, or to the next step or the window's end
+        i63 = int(t63[0]) if t63.size else y.size - 1
         rise = y[max(0, i20 - jump_horizon) : i63 + jump_horizon + 1]
         jump = (
             float(np.max(np.abs(rise[jump_horizon:] - rise[:-jump_horizon])))
@@ -137,12 +136,19 @@ def sp_step_responses(
             )
             kick = float(u[min(2, u.size - 1)])
             pushes = bool(u[i63] > 0 and u[i63] >= kick)
+        if t63.size == 0:
+            out.append(StepResponse(k, size, i20, None, nxt - k - i20, overshoot, jump, pushes))
+            continue
+        # first order plus dead time through the 20 % and 63 % points (two-point method)
+        tau = max(1, round((i63 - i20) / 0.777))
+        theta = max(0, round(i20 - 0.223 * tau))
         out.append(StepResponse(k, size, theta, tau, nxt - k - theta, overshoot, jump, pushes))
     return tuple(out)
 
 
 def all_creep(responses: tuple[StepResponse, ...], slowness_limit: float, max_jump: float) -> bool:
-    """Every set-point step in the window answered with a sluggish PI's creep (at least one).
+    """Every set-point step in the window answered with a sluggish PI's creep, at least one of
+    them seen to its 63 % point (one cut short by the next step is only part of a creep).
 
     A sluggish PI answers a step with a small proportional kick and then an integral action
     that keeps pushing OP the same way, and the PV follows smoothly, many dead times slow. A
@@ -151,7 +157,9 @@ def all_creep(responses: tuple[StepResponse, ...], slowness_limit: float, max_ju
     process' own lag: OP then ends short of its kick. Where every step creeps, the loop's own
     answer says sluggish, whatever else the window holds [R, generated windows: see
     ``TuningParams.creep_max_jump``]."""
-    return bool(responses) and all(r.creeps(slowness_limit, max_jump) for r in responses)
+    return any(r.time_constant is not None for r in responses) and all(
+        r.creeps(slowness_limit, max_jump) for r in responses
+    )
 
 
 def step_slowness(responses: tuple[StepResponse, ...]) -> float | None:

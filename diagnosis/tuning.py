@@ -42,16 +42,18 @@ class TuningParams:
     healthy 0.8-1.8, sticky 0.3-0.9, aggressive or disturbed 0.7-1.0, sluggish 2.6-8.1; above
     3: 34 of the 40 sluggish windows with a load response read, none of the healthy, sticky,
     aggressive or disturbed ones (3 saturated ones, which the window check decides first) [R]."""
-    creep_max_jump: float = 0.4
+    creep_max_jump: float = 0.6
     """A set-point step answered with a creep (``step_response.StepResponse.creeps``): the PV
-    rises from 20 % to 63 % of the step without moving more than this share of it within 8
-    samples, OP pushing on past its kick, slower than ``step_slowness_limit``. Where every step
-    of a window creeps and no stick-slip event breaks away while the PV settles after one,
-    the events are set aside as load changes a sluggish loop leaves standing. Generated
-    windows (seeds 1-2): 3 sluggish plant windows and 3 healthy short-window loops no longer
-    read stiction at 0.3-0.5, no sticky window is lost; at 0.15-0.25 one healthy loop fewer,
-    at 0.1 one sluggish plant window fewer; without this condition (OP and slips only) a
-    sticky plant window is lost [R]."""
+    rises from 20 % to 63 % of the step (or to the next step) without moving more than this
+    share of it within 8 samples, OP pushing on past its kick, slower than
+    ``step_slowness_limit``. Where every step of a window creeps, one of them to its 63 %
+    point, and no stick-slip event breaks away while the PV settles after one, the events are
+    set aside as load changes a sluggish loop leaves standing. Generated windows (seeds 1-2):
+    4 sluggish plant windows and 4 healthy short-window loops no longer read stiction at
+    0.5-0.8, no sticky window is lost; at 0.3-0.4 one healthy flow fewer, at 0.25 two more, at
+    1.0 one sticky plant window is lost. Sticky valves under a detuned PI (gain × 0.2-0.5,
+    integral time × 2-5; 288 generated windows) creep through their steps too: 6 of them read
+    sluggish by this rule [R]."""
     idle_min_samples: int = 50
     """Fewest informative samples (both increments beyond the dead zone) for an idle index."""
     idle_filter_ti: float = 0.5

@@ -130,6 +130,8 @@ def _plant_window(name: str) -> tuple[LoopRecord, PlantWindowCase]:
     [
         "sluggish_tuning-temperature2-n2000-steps1-free-continuous-noise0.05-r0",
         "sluggish_tuning-flow-n3600-steps2-limit70-quantised-noise0.2-r1",
+        # its second step is cut short by the window's end before the PV reaches 63 %
+        "sluggish_tuning-flow-n2000-steps2-free-quantised-noise0.05-r1",
     ],
 )
 def test_slips_beside_creeping_step_responses_are_load_changes(name: str) -> None:
