@@ -224,6 +224,28 @@ def test_a_pv_that_follows_op_after_the_slip_was_a_load(kc: float, tau_d: float,
     assert d.cause != "stiction", d.notes
 
 
+@pytest.mark.parametrize(
+    ("seed", "name"),
+    [
+        (2, "stiction-he-S3-J2.42-events1-flow-steps1-noise0.05-quantised-r3"),
+        (1, "stiction-he-S4-J3.86-events1-flow-steps3-noise0.5-continuous-r1"),
+        (1, "stiction-he-S4-J3.33-events2-composition-steps3-noise0.5-continuous-r1"),
+    ],
+)
+def test_a_slip_cut_short_by_the_next_turn_of_op_is_read_whole(seed: int, name: str) -> None:
+    """The valve breaks loose at OP's turning point and the controller, answering the slip,
+    turns OP again within a few samples: read only up to that turn, the slip's response is
+    too short for the two-model test. The stuck phase was clean, so the whole response is read
+    as well (``StickSlipParams.full_slip_follow``)."""
+    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
+    r = simulate_loop(case.config)
+    cut = ChainParams(stick_slip=replace(StickSlipParams(), full_slip_follow=-math.inf))
+    kw = {"sp": r.sp, "loop_type": case.loop_type, "quantify": False}
+    assert diagnose(r.pv, r.op, 10.0, params=cut, **kw).cause != "stiction"
+    d = diagnose(r.pv, r.op, 10.0, **kw)
+    assert d.cause == "stiction", d.notes
+
+
 @pytest.fixture(scope="module")
 def short_family() -> collections.Counter[tuple[str, bool]]:
     found: collections.Counter[tuple[str, bool]] = collections.Counter()
