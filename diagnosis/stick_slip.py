@@ -117,6 +117,13 @@ class StickSlipParams:
     kick_fraction: float = 0.3
     """... and OP moved at most this share of its travel just before the turn (a set-point
     kick turns OP as well, and the PV then follows the kick)."""
+    step_kick_fraction: float = 0.8
+    """A confirmed event whose turn comes with a set-point step (within ``jump_horizon``
+    samples), and more than this share of whose OP travel is the move just before the turn,
+    is no stuck phase: OP jumped with the step's proportional kick and the PV followed it after the
+    loop's dead time. (A sticky valve that the kick breaks loose has ramped OP before.) Plant
+    windows: one healthy temperature loop no longer reads stiction; the same from 0.6 to 0.99,
+    and nothing else moves on any set; at 0.3 a sticky refinery window is lost [R]."""
     full_slip_follow: float = 0.5
     """A slip found at OP's turning point is read up to OP's next turn, which the controller's
     answer to the slip brings within a few samples and which cuts the slip's own response
@@ -496,6 +503,11 @@ def _stuck_phases(
     return [(int(s[i]), int(a[i]), int(b[i]), float(toward[i]), float(travel[i])) for i in keep]
 
 
+def _near_step(ev: StickSlipEvent, sp_steps: IntArray, horizon: int) -> bool:
+    """A set-point step within ``horizon`` samples before the breakaway (or two after)."""
+    return bool(np.any((sp_steps >= ev.breakaway - horizon) & (sp_steps <= ev.breakaway + 2)))
+
+
 def _slip_end(s: int, a: int, n: int, p: StickSlipParams) -> int:
     """Last sample of the slip's response read after the breakaway ``a`` of a stuck phase
     that began at ``s``: ``slip_window_fraction`` of the stuck phase's length, at least
@@ -713,6 +725,8 @@ def detect_stick_slip(
                 if sse_lin >= ratio_needed * sse_slip and chi2 >= chi2_needed:
                     strong = True
                     break
+        if strong and kick > p.step_kick_fraction and _near_step(ev, sp_steps, p.jump_horizon):
+            strong = False
         if (strong or fast) and _moves_after(ev, pv, sig, dyn, sp_steps, gain_sign, integrating, p):
             strong = fast = False
         if strong or fast:

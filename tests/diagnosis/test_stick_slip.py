@@ -35,6 +35,7 @@ from plantcheck.simulator.loop import (
     recorded_pv,
     simulate_loop,
 )
+from plantcheck.simulator.plant_windows import generate_plant_window_cases
 
 
 def _slow_loop(**kw: object) -> LoopConfig:
@@ -244,6 +245,21 @@ def test_a_slip_cut_short_by_the_next_turn_of_op_is_read_whole(seed: int, name: 
     assert diagnose(r.pv, r.op, 10.0, params=cut, **kw).cause != "stiction"
     d = diagnose(r.pv, r.op, 10.0, **kw)
     assert d.cause == "stiction", d.notes
+
+
+def test_a_set_point_kick_is_no_stuck_phase() -> None:
+    """A healthy temperature loop: a set-point step kicks OP by 11 % and the PV follows it
+    after the loop's dead time, which the two-model test confirmed as a slip. The OP travel
+    of that "stuck phase" is the kick itself (``StickSlipParams.step_kick_fraction``)."""
+    name = "ok-temperature-n2000-steps4-limit63-quantised-noise0.05-r0"
+    case = next(c.case for c in generate_plant_window_cases(seed=2) if c.case.name == name)
+    r = simulate_loop(case.config)
+    ts = case.config.sample_time_s
+    kicked = ChainParams(stick_slip=replace(StickSlipParams(), step_kick_fraction=math.inf))
+    kw = {"sp": r.sp, "loop_type": case.loop_type, "quantify": False}
+    assert diagnose(r.pv, r.op, ts, params=kicked, **kw).cause == "stiction"
+    d = diagnose(r.pv, r.op, ts, **kw)
+    assert d.cause == "ok", d.notes
 
 
 @pytest.fixture(scope="module")
