@@ -12,6 +12,8 @@ import pytest
 from plantcheck.core.toml_config import ConfigError
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.config import Config, LoopConfig, SourceConfig
+from plantcheck.simulator.cases import Case
+from plantcheck.simulator.plant_windows import generate_plant_window_cases
 from plantcheck.storage.results import Verdict
 from plantcheck.storage.store import LoopRow
 
@@ -80,3 +82,15 @@ def check_refusal(path: Path, expected: str, load: Callable[[Path], object]) -> 
     assert message.startswith(str(path)), message
     assert expected in message, message
     assert "\n" not in message
+
+
+def plant_window(name: str) -> Case:
+    """The one generated plant window of this name, seeds 1 and 2 (the windows of
+    ``benchmarks/plant_window_accuracy.py``)."""
+    (case,) = [
+        pc.case
+        for seed in (1, 2)
+        for pc in generate_plant_window_cases(seed=seed)
+        if pc.case.name == name
+    ]
+    return case

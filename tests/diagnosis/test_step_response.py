@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from helpers import plant_window
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.step_response import (
@@ -18,8 +19,7 @@ from plantcheck.diagnosis.step_response import (
 )
 from plantcheck.diagnosis.tuning import TuningParams, identify_pi
 from plantcheck.simulator.cases import process_setup
-from plantcheck.simulator.loop import LoopConfig, LoopRecord, simulate_loop
-from plantcheck.simulator.plant_windows import PlantWindowCase, generate_plant_window_cases
+from plantcheck.simulator.loop import LoopConfig, simulate_loop
 
 
 def _stepped(
@@ -120,11 +120,6 @@ def test_a_sticky_valve_does_not_creep(pname: str, valve: str) -> None:
     assert not all_creep(responses, tp.step_slowness_limit, tp.creep_max_jump)
 
 
-def _plant_window(name: str) -> tuple[LoopRecord, PlantWindowCase]:
-    case = next(c for c in generate_plant_window_cases(seed=1) if c.case.name == name)
-    return simulate_loop(case.case.config), case
-
-
 @pytest.mark.parametrize(
     "name",
     [
@@ -137,9 +132,10 @@ def _plant_window(name: str) -> tuple[LoopRecord, PlantWindowCase]:
 def test_slips_beside_creeping_step_responses_are_load_changes(name: str) -> None:
     """A sluggish loop leaves a load step standing and its return looks like a slip; its
     set-point steps, answered with a creep, say sluggish (these read stiction before)."""
-    run, case = _plant_window(name)
-    ts = case.case.config.sample_time_s
-    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type=case.case.loop_type, quantify=False)
+    case = plant_window(name)
+    run = simulate_loop(case.config)
+    ts = case.config.sample_time_s
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type=case.loop_type, quantify=False)
     assert d.cause == "sluggish_tuning", d.notes
     assert d.stiction.events, "the events stay listed for the engineer to check"
     assert any("answered with a creep" in n for n in d.notes), d.notes

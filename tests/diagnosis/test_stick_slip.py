@@ -10,9 +10,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from helpers import plant_window
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.chain import ChainParams
+from plantcheck.diagnosis.result import Diagnosis
 from plantcheck.diagnosis.stick_slip import (
     StickSlipParams,
     _recording_variance,
@@ -30,12 +32,12 @@ from plantcheck.simulator.cases import (
 from plantcheck.simulator.loop import (
     Disturbance,
     LoopConfig,
+    LoopRecord,
     PIController,
     Process,
     recorded_pv,
     simulate_loop,
 )
-from plantcheck.simulator.plant_windows import generate_plant_window_cases
 
 
 def _slow_loop(**kw: object) -> LoopConfig:
@@ -208,6 +210,13 @@ def test_healthy_loops_under_coloured_loads_are_mostly_not_stiction() -> None:
     assert sum(calls) <= 3, sum(calls)
 
 
+def _diagnosed(r: LoopRecord, ts: float, loop_type: str, **stick_slip: float) -> Diagnosis:
+    """The chain's diagnosis of a simulated window, with these stick-slip parameters changed
+    (none: the defaults), to show what one rule of the detector does."""
+    params = ChainParams(stick_slip=replace(StickSlipParams(), **stick_slip))
+    return diagnose(r.pv, r.op, ts, sp=r.sp, loop_type=loop_type, quantify=False, params=params)
+
+
 @pytest.mark.parametrize(
     ("kc", "tau_d", "seed"), [(0.4, 200.0, 8), (0.4, 600.0, 7), (0.4, 600.0, 8)]
 )
@@ -216,12 +225,8 @@ def test_a_pv_that_follows_op_after_the_slip_was_a_load(kc: float, tau_d: float,
     loops a coloured load turns toward the set point at the end of an OP ramp, as a slip
     would, but then the PV follows OP back: without that check each reads stiction."""
     r = simulate_loop(_coloured_load_loop(kc, tau_d, seed))
-    unchecked = ChainParams(stick_slip=replace(StickSlipParams(), after_ratio=math.inf))
-    before = diagnose(
-        r.pv, r.op, 10.0, sp=r.sp, loop_type="pressure", quantify=False, params=unchecked
-    )
-    assert before.cause == "stiction"
-    d = diagnose(r.pv, r.op, 10.0, sp=r.sp, loop_type="pressure", quantify=False)
+    assert _diagnosed(r, 10.0, "pressure", after_ratio=math.inf).cause == "stiction"
+    d = _diagnosed(r, 10.0, "pressure")
     assert d.cause != "stiction", d.notes
 
 
@@ -240,10 +245,8 @@ def test_a_slip_cut_short_by_the_next_turn_of_op_is_read_whole(seed: int, name: 
     as well (``StickSlipParams.full_slip_follow``)."""
     case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
     r = simulate_loop(case.config)
-    cut = ChainParams(stick_slip=replace(StickSlipParams(), full_slip_follow=-math.inf))
-    kw = {"sp": r.sp, "loop_type": case.loop_type, "quantify": False}
-    assert diagnose(r.pv, r.op, 10.0, params=cut, **kw).cause != "stiction"
-    d = diagnose(r.pv, r.op, 10.0, **kw)
+    assert _diagnosed(r, 10.0, case.loop_type, full_slip_follow=-math.inf).cause != "stiction"
+    d = _diagnosed(r, 10.0, case.loop_type)
     assert d.cause == "stiction", d.notes
 
 
@@ -252,13 +255,11 @@ def test_a_set_point_kick_is_no_stuck_phase() -> None:
     after the loop's dead time, which the two-model test confirmed as a slip. The OP travel
     of that "stuck phase" is the kick itself (``StickSlipParams.step_kick_fraction``)."""
     name = "ok-temperature-n2000-steps4-limit63-quantised-noise0.05-r0"
-    case = next(c.case for c in generate_plant_window_cases(seed=2) if c.case.name == name)
+    case = plant_window(name)
     r = simulate_loop(case.config)
     ts = case.config.sample_time_s
-    kicked = ChainParams(stick_slip=replace(StickSlipParams(), step_kick_fraction=math.inf))
-    kw = {"sp": r.sp, "loop_type": case.loop_type, "quantify": False}
-    assert diagnose(r.pv, r.op, ts, params=kicked, **kw).cause == "stiction"
-    d = diagnose(r.pv, r.op, ts, **kw)
+    assert _diagnosed(r, ts, case.loop_type, step_kick_fraction=math.inf).cause == "stiction"
+    d = _diagnosed(r, ts, case.loop_type)
     assert d.cause == "ok", d.notes
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import plant_window
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.tuning import (
@@ -14,7 +15,6 @@ from plantcheck.diagnosis.tuning import (
 )
 from plantcheck.simulator.cases import generate_short_window_cases
 from plantcheck.simulator.loop import simulate_loop
-from plantcheck.simulator.plant_windows import generate_plant_window_cases
 
 
 def _ar1(phi: float, n: int = 20_000, seed: int = 1) -> np.ndarray:
@@ -47,12 +47,7 @@ def test_a_low_gain_loop_without_set_point_steps_is_sluggish() -> None:
     """Kc 0.2 on a fast flow loop: load recoveries last about 100 Ti. Filtered over 0.5 Ti the
     increments read the noise the proportional action copies into OP (index -0.17, `ok`)."""
     name = "sluggish_tuning-flow-n6000-steps0-limit70-continuous-noise0.5-r0"
-    (case,) = [
-        pc.case
-        for seed in (1, 2)
-        for pc in generate_plant_window_cases(seed=seed, per_cell=2)
-        if pc.case.name == name
-    ]
+    case = plant_window(name)
     r = simulate_loop(case.config)
     d = diagnose(r.pv, r.op, case.config.sample_time_s, sp=r.sp, loop_type="flow", quantify=False)
     assert d.cause == "sluggish_tuning", d.notes
