@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import i0e, i1e
 
+from plantcheck.diagnosis.acf_decay import EXCESSIVE_DECAY_RATIO
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf
 from plantcheck.diagnosis.oscillation import OscillationResult
 from plantcheck.diagnosis.signal_tools import FloatArray, bandpass, detrend, noise_sigma
@@ -51,6 +52,9 @@ class SplitParams:
     ringing_envelope_cv: float = 0.4
     """At or above this (noise included: it is the loop's own ringing that the noise
     excites) the oscillation rings on noise: the loop's own (aggressive tuning)."""
+    min_decay_ratio: float = EXCESSIVE_DECAY_RATIO
+    """The loop's own cycle is aggressive tuning only where its ACF decays this slowly or
+    slower (Miao & Seborg 1999, ``acf_decay``); below, the loop damps it out within a cycle."""
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from plantcheck.diagnosis.acf_decay import acf_decay_ratio
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
-from plantcheck.diagnosis.cause_split import SplitParams, split_cause
+from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
 from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
@@ -180,6 +181,8 @@ class _Stretch:
     b: int
     osc: OscillationResult
     pi: PIEstimate
+    on_op: bool = False
+    """The oscillation was found in OP, not in the control error."""
 
 
 def _standard(
@@ -323,6 +326,7 @@ def _find_oscillation(run: _Run) -> _Stretch:
     win, ts, p, diag = run.win, run.ts, run.p, run.diag
     a, b = win.segment
     osc = detect_oscillation(win.sp[a:b] - win.pv[a:b], ts, p.oscillation)
+    on_op = False
     if not osc.oscillating:
         # Between set-point steps each settled stretch is a window of its own: a limit cycle
         # that the longest stretch happens to hide (a load change there) shows in another.
@@ -347,10 +351,10 @@ def _find_oscillation(run: _Run) -> _Stretch:
             diag.notes.append(
                 "the oscillation shows in OP (the controller output cycles) more than in PV"
             )
-            osc = osc_op
+            osc, on_op = osc_op, True
     diag.indices["hagglund_load_count"] = osc.load_count
     diag.oscillating = osc.oscillating
-    return _Stretch(a, b, osc, pi)
+    return _Stretch(a, b, osc, pi, on_op)
 
 
 def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
@@ -449,18 +453,17 @@ def _slips_during(events: StickSlipResult, responses: tuple[StepResponse, ...]) 
 def _judge_oscillation(run: _Run, st: _Stretch) -> None:
     """An oscillating loop (FAM/SAM): the applicable stiction tests and their vote, with the
     stick-slip events beside them; stiction is quantified, any other oscillation split
-    between aggressive tuning and an external disturbance (``cause_split``)."""
+    between aggressive tuning and an external disturbance (``cause_split``). A cycle at the
+    loop's own frequency that dies out within a cycle is no tuning fault: the loop is judged
+    as a quiet one (``_well_damped``)."""
     win, ts, p, diag, events, osc = run.win, run.ts, run.p, run.diag, run.events, st.osc
     pv_s, op_s, sp_s = win.pv[st.a : st.b], win.op[st.a : st.b], win.sp[st.a : st.b]
-    diag.oscillation = {
-        "period_s": osc.period_s,
-        "amplitude": osc.amplitude,
-        "regularity": osc.regularity,
-    }
-    diag.oscillations = oscillations_json(osc)
     if run.exclude_stiction:
         no_stiction = VoteResult("no_stiction", 0, 0, 0, -1.0)
         split = split_cause(op_s, pv_s, ts, osc, {}, no_stiction, st.pi, run.loop_type, p.split)
+        if _well_damped(run, st, split):
+            return
+        _oscillation_into(diag, osc)
         diag.cause, diag.confidence = split.cause, split.confidence
         diag.notes.append(split.reason + " (valve healthy: stiction excluded)")
         diag.actions = [action_for(diag.cause)]
@@ -469,6 +472,11 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
     if events is not None:
         tests["stick_slip"] = _events_vote(events, p.stick_slip)
     v = vote(list(tests.values()), p.vote)
+    if v.decision != "stiction":
+        split = split_cause(op_s, pv_s, ts, osc, tests, v, st.pi, run.loop_type, p.split)
+        if _well_damped(run, st, split):
+            return
+    _oscillation_into(diag, osc)
     diag.stiction["tests"] = _tests_json(tests)
     diag.stiction["votes"] = {name: r.verdict for name, r in tests.items()}
     diag.stiction["vote"] = {
@@ -488,11 +496,42 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
         if events is not None:
             _estimate_into(diag, events, win.pv, win.op, run.gain_sign)
     else:
-        split = split_cause(op_s, pv_s, ts, osc, tests, v, st.pi, run.loop_type, p.split)
         diag.cause = split.cause
         diag.confidence = split.confidence
         diag.notes.append(split.reason)
     diag.actions = [_stiction_action(diag)]
+
+
+def _oscillation_into(diag: DiagnosisDraft, osc: OscillationResult) -> None:
+    diag.oscillation = {
+        "period_s": osc.period_s,
+        "amplitude": osc.amplitude,
+        "regularity": osc.regularity,
+    }
+    diag.oscillations = oscillations_json(osc)
+
+
+def _well_damped(run: _Run, st: _Stretch, split: SplitResult) -> bool:
+    """Where the split reads the cycle as the loop's own, whether the loop rings on or damps
+    it out: a decay ratio of the ACF below ``SplitParams.min_decay_ratio`` (Miao & Seborg
+    1999) is a well damped loop whose noise and loads excite its own frequency, as any fast
+    loop's do (a SIMC-tuned loop with a dead time of one or two samples shows a spectral bump
+    that the regularity test can take for an oscillation). Such a loop is judged as a quiet
+    one (tuning, stick-slip events, or ok), with the reason in the notes."""
+    if split.cause != "aggressive_tuning":
+        return False
+    win, p = run.win, run.p
+    x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
+    ratio = acf_decay_ratio(x)
+    if ratio is None or ratio >= p.split.min_decay_ratio:
+        return False
+    run.diag.oscillating = False
+    reason = (
+        f"the cycle at the loop's own frequency ({st.osc.period_s:.0f} s) is well damped "
+        f"(ACF decay ratio {ratio:.2f} < {p.split.min_decay_ratio:g}, Miao & Seborg 1999)"
+    )
+    _judge_quiet_loop(run, replace(st, osc=replace(st.osc, oscillating=False, reason=reason)))
+    return True
 
 
 def diagnose(
