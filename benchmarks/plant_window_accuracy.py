@@ -7,7 +7,15 @@ precision and F1 per class and the macro-F1, then the accuracy per family (set-p
 output limit, recording, noise), so a weak family is visible, and how many windows were refused
 for set-point steps alone.
 
-    python benchmarks/plant_window_accuracy.py [--seeds 1 2] [--per-cell 2] [-v]
+``--processes`` draws the same windows on a process table the chain was not developed on
+(``simulator.cases.OTHER_PROCESS_SETS``), to show what the figures owe to the benchmark's own
+table. There a sticky valve whose stickband lies within the controller output's noise moves
+with that noise (a dithered valve shows no stick-slip on SP, PV and OP); the script counts the
+sticky windows whose valve moves in more than a tenth of the samples, and how many of them read
+`stiction`.
+
+    python benchmarks/plant_window_accuracy.py [--seeds 1 2] [--per-cell 2]
+        [--processes benchmark|long-lags|short-dead-times] [-v]
 """
 
 from __future__ import annotations
@@ -16,11 +24,16 @@ import argparse
 import collections
 import time
 
+import numpy as np
+
 from plantcheck.diagnosis import diagnose
+from plantcheck.simulator.cases import OTHER_PROCESS_SETS
 from plantcheck.simulator.loop import simulate_loop
 from plantcheck.simulator.plant_windows import CLASSES, generate_plant_window_cases
 
 REFUSED_FOR_SP = "leave no settled stretch"
+DITHERED = 0.1
+"""A sticky valve that moves in more than this share of the samples follows OP's noise."""
 
 
 def _f1(tp: int, fp: int, fn: int) -> tuple[float, float, float]:
@@ -34,8 +47,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--per-cell", type=int, default=2)
+    ap.add_argument(
+        "--processes", choices=["benchmark", *OTHER_PROCESS_SETS], default="benchmark",
+        help="process table (default: the benchmark's, simulator.cases.PROCESSES)",
+    )  # fmt: skip
     ap.add_argument("-v", "--verbose", action="store_true", help="list every wrong window")
     args = ap.parse_args()
+    table = OTHER_PROCESS_SETS.get(args.processes)
+    dithered: collections.Counter[bool] = collections.Counter()
     t0 = time.perf_counter()
     confusion: collections.Counter[tuple[str, str]] = collections.Counter()
     family: dict[str, collections.Counter[tuple[str, bool]]] = collections.defaultdict(
@@ -43,12 +62,14 @@ def main() -> None:
     )
     refused = 0
     for seed in args.seeds:
-        for pc in generate_plant_window_cases(seed=seed, per_cell=args.per_cell):
+        for pc in generate_plant_window_cases(seed, args.per_cell, table):
             c = pc.case
             r = simulate_loop(c.config)
             d = diagnose(
                 r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type, quantify=False
             )
+            if c.cause == "stiction" and np.mean(np.diff(r.mv) != 0.0) > DITHERED:
+                dithered[d.cause == "stiction"] += 1
             confusion[(c.cause, d.cause)] += 1
             hit = d.cause == c.cause
             family["set-point steps"][(str(pc.sp_steps), hit)] += 1
@@ -75,6 +96,11 @@ def main() -> None:
     accuracy = sum(confusion[(c, c)] for c in CLASSES) / total
     print(f"accuracy {accuracy:.3f}, macro-F1 {sum(f1s) / len(f1s):.3f}")
     print(f"refused for set-point steps alone: {refused} of {total}")
+    n_dith = dithered[True] + dithered[False]
+    print(
+        f"sticky windows whose valve moves in more than {DITHERED:.0%} of the samples "
+        f"(dithered by OP's noise): {n_dith}, read stiction {dithered[True]}"
+    )
     for name, counts in family.items():
         cells = sorted({k for k, _ in counts})
         parts = [

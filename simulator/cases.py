@@ -10,7 +10,7 @@ constant (or several closed-loop time scales for integrating processes).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from functools import partial
 
@@ -35,6 +35,36 @@ PROCESSES: dict[str, tuple[str, Process]] = {
     "composition": ("composition", Process("fopdt", K=1.0, tau_s=150.0, theta_s=40.0)),
     "level": ("level", Process("integrating", K=0.1, theta_s=2.0)),
 }
+
+
+OTHER_PROCESS_SETS: dict[str, dict[str, tuple[str, Process]]] = {
+    "long-lags": {
+        "flow": ("flow", Process("fopdt", K=0.6, tau_s=4.0, theta_s=0.6)),
+        "pressure": ("pressure", Process("fopdt", K=0.8, tau_s=25.0, theta_s=3.0)),
+        "temperature": ("temperature", Process("fopdt", K=1.5, tau_s=60.0, theta_s=12.0)),
+        "temperature2": (
+            "temperature",
+            Process("fopdt", K=2.0, tau_s=80.0, theta_s=6.0, tau2_s=25.0),
+        ),
+        "composition": ("composition", Process("fopdt", K=1.8, tau_s=400.0, theta_s=90.0)),
+        "level": ("level", Process("integrating", K=0.04, theta_s=5.0)),
+    },
+    "short-dead-times": {
+        "flow": ("flow", Process("fopdt", K=1.5, tau_s=1.5, theta_s=1.5)),
+        "pressure": ("pressure", Process("fopdt", K=2.5, tau_s=5.0, theta_s=1.0, tau2_s=2.0)),
+        "temperature": ("temperature", Process("fopdt", K=0.7, tau_s=120.0, theta_s=8.0)),
+        "temperature2": (
+            "temperature",
+            Process("fopdt", K=1.2, tau_s=40.0, theta_s=20.0, tau2_s=15.0),
+        ),
+        "composition": ("composition", Process("fopdt", K=0.5, tau_s=90.0, theta_s=60.0)),
+        "level": ("level", Process("integrating", K=0.2, theta_s=1.0)),
+    },
+}
+"""Process tables the chain was not developed on, with the names of ``PROCESSES``: other
+gains, lags and dead times, so that a benchmark can show what the chain owes to the one table
+it was tuned on. ``long-lags``: slower lags and longer dead times; ``short-dead-times``: dead
+times of one to five samples, where a healthy loop's own frequency lies a few samples long."""
 
 
 VISIBLE_SLIP_NOISE = 4.0
@@ -100,9 +130,12 @@ class ProcessSetup:
     tu: float
 
 
-def process_setup(pname: str) -> ProcessSetup:
-    """Sample time from the process' slowest time scale (0.2 s … 10 s), SIMC tuning, Ku, Tu."""
-    loop_type, proc = PROCESSES[pname]
+def process_setup(
+    pname: str, processes: Mapping[str, tuple[str, Process]] | None = None
+) -> ProcessSetup:
+    """Sample time from the process' slowest time scale (0.2 s … 10 s), SIMC tuning, Ku, Tu,
+    for the process ``pname`` of ``processes`` (default ``PROCESSES``)."""
+    loop_type, proc = (processes or PROCESSES)[pname]
     slow = proc.tau_s + proc.theta_s + proc.tau2_s if proc.kind == "fopdt" else 20.0
     ts = float(np.clip(round(slow / 20.0, 1), 0.2, 10.0))  # 0.2 s (flow) … 9.5 s (analyser)
     pi = simc_pi(proc)

@@ -10,7 +10,7 @@ its class, so a weakness shows per family (``family`` of each case).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -58,8 +58,14 @@ def _steady_op(proc: Process, sp: float, load: float = 0.0, u0: float = 50.0) ->
     return u0 + (sp - 50.0) / proc.K - load
 
 
-def generate_plant_window_cases(seed: int = 1, per_cell: int = 2) -> Iterator[PlantWindowCase]:
-    """Every class × process × noise level (σ 0.05, 0.2, 0.5 %) × ``per_cell``.
+def generate_plant_window_cases(
+    seed: int = 1,
+    per_cell: int = 2,
+    processes: Mapping[str, tuple[str, Process]] | None = None,
+) -> Iterator[PlantWindowCase]:
+    """Every class × process × noise level (σ 0.05, 0.2, 0.5 %) × ``per_cell``, on the
+    processes of ``cases.PROCESSES`` or of ``processes`` (e.g. one of
+    ``cases.OTHER_PROCESS_SETS``: tables the chain was not developed on).
 
     Each window draws, whatever its class: a length from ``LENGTHS``; 0-4 set-point steps of
     2-5 % around 50 % at random times; an output limit (half the windows) 8-25 % above the
@@ -79,8 +85,9 @@ def generate_plant_window_cases(seed: int = 1, per_cell: int = 2) -> Iterator[Pl
       point for most of it.
     """
     rng = np.random.default_rng(seed)
-    for pname in PROCESSES:
-        su = process_setup(pname)
+    table = processes or PROCESSES
+    for pname in table:
+        su = process_setup(pname, table)
         for noise in (0.05, 0.2, 0.5):
             for rep in range(per_cell):
                 for cause in CLASSES:
