@@ -37,29 +37,42 @@ PROCESSES: dict[str, tuple[str, Process]] = {
 }
 
 
+def _process_table(
+    flow: Process,
+    pressure: Process,
+    temperature: Process,
+    temperature2: Process,
+    composition: Process,
+    level: Process,
+) -> dict[str, tuple[str, Process]]:
+    """A process table with the names and loop types of ``PROCESSES``."""
+    return {
+        "flow": ("flow", flow),
+        "pressure": ("pressure", pressure),
+        "temperature": ("temperature", temperature),
+        "temperature2": ("temperature", temperature2),
+        "composition": ("composition", composition),
+        "level": ("level", level),
+    }
+
+
 OTHER_PROCESS_SETS: dict[str, dict[str, tuple[str, Process]]] = {
-    "long-lags": {
-        "flow": ("flow", Process("fopdt", K=0.6, tau_s=4.0, theta_s=0.6)),
-        "pressure": ("pressure", Process("fopdt", K=0.8, tau_s=25.0, theta_s=3.0)),
-        "temperature": ("temperature", Process("fopdt", K=1.5, tau_s=60.0, theta_s=12.0)),
-        "temperature2": (
-            "temperature",
-            Process("fopdt", K=2.0, tau_s=80.0, theta_s=6.0, tau2_s=25.0),
-        ),
-        "composition": ("composition", Process("fopdt", K=1.8, tau_s=400.0, theta_s=90.0)),
-        "level": ("level", Process("integrating", K=0.04, theta_s=5.0)),
-    },
-    "short-dead-times": {
-        "flow": ("flow", Process("fopdt", K=1.5, tau_s=1.5, theta_s=1.5)),
-        "pressure": ("pressure", Process("fopdt", K=2.5, tau_s=5.0, theta_s=1.0, tau2_s=2.0)),
-        "temperature": ("temperature", Process("fopdt", K=0.7, tau_s=120.0, theta_s=8.0)),
-        "temperature2": (
-            "temperature",
-            Process("fopdt", K=1.2, tau_s=40.0, theta_s=20.0, tau2_s=15.0),
-        ),
-        "composition": ("composition", Process("fopdt", K=0.5, tau_s=90.0, theta_s=60.0)),
-        "level": ("level", Process("integrating", K=0.2, theta_s=1.0)),
-    },
+    "long-lags": _process_table(
+        flow=Process("fopdt", K=0.6, tau_s=4.0, theta_s=0.6),
+        pressure=Process("fopdt", K=0.8, tau_s=25.0, theta_s=3.0),
+        temperature=Process("fopdt", K=1.5, tau_s=60.0, theta_s=12.0),
+        temperature2=Process("fopdt", K=2.0, tau_s=80.0, theta_s=6.0, tau2_s=25.0),
+        composition=Process("fopdt", K=1.8, tau_s=400.0, theta_s=90.0),
+        level=Process("integrating", K=0.04, theta_s=5.0),
+    ),
+    "short-dead-times": _process_table(
+        flow=Process("fopdt", K=1.5, tau_s=1.5, theta_s=1.5),
+        pressure=Process("fopdt", K=2.5, tau_s=5.0, theta_s=1.0, tau2_s=2.0),
+        temperature=Process("fopdt", K=0.7, tau_s=120.0, theta_s=8.0),
+        temperature2=Process("fopdt", K=1.2, tau_s=40.0, theta_s=20.0, tau2_s=15.0),
+        composition=Process("fopdt", K=0.5, tau_s=90.0, theta_s=60.0),
+        level=Process("integrating", K=0.2, theta_s=1.0),
+    ),
 }
 """Process tables the chain was not developed on, with the names of ``PROCESSES``: other
 gains, lags and dead times, so that a benchmark can show what the chain owes to the one table
