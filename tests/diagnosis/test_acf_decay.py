@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import plant_window
 from scipy.signal import lfilter
 
 from plantcheck.diagnosis import diagnose
@@ -105,3 +106,14 @@ def test_healthy_fast_sampled_loops_are_not_called_aggressive(loop_type: str, no
 @pytest.mark.parametrize("noise", [0.05, 0.5])
 def test_aggressive_fast_sampled_loops_still_are(loop_type: str, noise: float) -> None:
     assert _fast_loop(loop_type, noise, 1, 0.9) == "aggressive_tuning"
+
+
+def test_a_well_damped_cycle_of_unknown_cause_is_no_oscillation() -> None:
+    """A healthy level loop whose noise-driven cycle the split could tie to nothing (it read
+    ``oscillation_unknown_cause``) dies out within a cycle: judged as a quiet loop."""
+    case = plant_window("ok-level-n2000-steps1-limit64-continuous-noise0.05-r1")
+    r = simulate_loop(case.config)
+    d = diagnose(r.pv, r.op, case.config.sample_time_s, sp=r.sp, loop_type="level", quantify=False)
+    assert d.cause == "ok"
+    assert not d.oscillating
+    assert any("is well damped (ACF decay ratio" in n for n in d.notes)
