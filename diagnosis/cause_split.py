@@ -53,8 +53,10 @@ class SplitParams:
     """At or above this (noise included: it is the loop's own ringing that the noise
     excites) the oscillation rings on noise: the loop's own (aggressive tuning)."""
     min_decay_ratio: float = EXCESSIVE_DECAY_RATIO
-    """The loop's own cycle is aggressive tuning only where its ACF decays this slowly or
-    slower (Miao & Seborg 1999, ``acf_decay``); below, the loop damps it out within a cycle."""
+    """A cycle the split reads as the loop's own (aggressive tuning) or cannot tie to anything
+    (an unknown cause) stands only where its ACF decays this slowly or slower (Miao & Seborg
+    1999, ``acf_decay``); below, the loop damps it out within a cycle and the chain judges it
+    as a quiet loop (``chain._well_damped``, ``chain.DAMPED_CAUSES``)."""
 
 
 @dataclass(frozen=True)
