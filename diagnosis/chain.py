@@ -403,7 +403,7 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
         diag.notes.append(
             f"set-point step response(s): closed-loop time constant {slowness:.1f} x the "
             f"dead time (median of {len(responses)}; sluggish above "
-            f"{p.tuning.step_slowness_limit:g})"
+            f"{p.tuning.step_slowness_limit:g})" + _fitted_note(responses)
         )
     if events is not None and events.test.verdict == "stiction" and not run.exclude_stiction:
         # A sluggish loop creeps toward SP with OP and PV together (idle index > 0); a load
@@ -441,6 +441,13 @@ def _judge_quiet_loop(run: _Run, st: _Stretch) -> None:
         diag.cause = "ok"
         diag.confidence = 0.7 if ii is not None else 0.6
     diag.actions = [action_for(diag.cause)]
+
+
+def _fitted_note(responses: tuple[StepResponse, ...]) -> str:
+    """Says when the responses were read by the least-squares fit (steps within 6 noise σ)."""
+    if responses and all(r.fitted for r in responses):
+        return "; steps of 3-6 x the PV noise, read by a least-squares fit of every sample"
+    return ""
 
 
 def _slips_during(events: StickSlipResult, responses: tuple[StepResponse, ...]) -> bool:

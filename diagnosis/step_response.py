@@ -12,12 +12,18 @@ speed, so a healthy slow loop is not called sluggish. Times in samples unless na
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray, moving_average, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    first_order_recursions,
+    moving_average,
+    noise_sigma,
+)
 
 
 @dataclass(frozen=True)
@@ -45,6 +51,9 @@ class StepResponse:
     far as its proportional kick, in the direction that moves the PV toward the new set point:
     the integral action kept pushing. None when OP was not given or the PV never reached
     20 %."""
+    fitted: bool = False
+    """Read by the least-squares fit (a step of 3-6 noise σ, ``fopdt_fit``) rather than
+    through its 20 % and 63 % points."""
 
     @property
     def slowness(self) -> float:
@@ -88,6 +97,7 @@ def sp_step_responses(
     op: FloatArray | None = None,
     gain_sign: int = 1,
     jump_horizon: int = 8,
+    min_fit_step_noise: float = 3.0,
 ) -> tuple[StepResponse, ...]:
     """The response of PV to each set-point step at sample indices ``steps``.
 
@@ -103,6 +113,12 @@ def sp_step_responses(
     the same way, kept pushing past its proportional kick (``op_pushes``; the kick is read
     two samples after the step). That tells a sluggish PI's creep from a sticky valve's
     answer (``StepResponse.creeps``).
+
+    Where no step stands ``min_step_noise`` σ clear, the steps of ``min_fit_step_noise`` σ
+    and more are read by a least-squares fit of the same first order plus dead time to every
+    sample of the response (``fopdt_fit``) instead: the two-point method reads single noisy
+    crossings, the fit averages the noise over the whole response. Such a response has no
+    ``jump`` or ``op_pushes`` (it never sets events aside).
     """
     sigma = noise_sigma(pv)
     out: list[StepResponse] = []
@@ -143,6 +159,100 @@ def sp_step_responses(
         tau = max(1, round((i63 - i20) / 0.777))
         theta = max(0, round(i20 - 0.223 * tau))
         out.append(StepResponse(k, size, theta, tau, nxt - k - theta, overshoot, jump, pushes))
+    if out:
+        return tuple(out)
+    return _fitted_responses(pv, sp, steps, sigma, min_fit_step_noise, min_step_noise, min_samples)
+
+
+FIT_BEFORE = 200
+"""Samples before a set-point step (back to the previous step) that pin the fitted response's
+starting level."""
+FIT_LENGTH = 2000
+"""Samples after a set-point step read by the fit at most."""
+FIT_MAX_DEAD_TIME = 200
+"""Longest dead time the fit tries, samples."""
+FIT_GAIN = (0.5, 1.5)
+"""A fitted response moves the PV by this share of the step (the integral action brings the
+PV to the set point); outside, a load moved it as much as the step did and the fit is not
+the step's."""
+FIT_TIME_CONSTANTS = np.unique(np.round(np.logspace(0.0, np.log10(1500.0), 40)))
+"""Closed-loop time constants the fit tries, samples."""
+
+
+def fopdt_fit(y: FloatArray, start: int, max_dead_time: int) -> tuple[int, float, float, float]:
+    """Least-squares first order plus dead time y ≈ c + K·(1 − e^{−(t − start − θ)/τ}) for
+    t ≥ start + θ (c before), over every θ up to ``max_dead_time`` and τ of
+    ``FIT_TIME_CONSTANTS``. Returns (θ samples, τ samples, K, c).
+
+    For each τ the sums the least squares need come in closed form for every θ at once:
+    Σx and Σx² are geometric series, and Σx·y = Σy − Z_θ with Z_θ = Σ_{t≥θ} r^{t−θ}·y_t
+    (r = e^{−1/τ}) one backward first-order recursion over the response (Ljung 1999 on
+    least squares over a grid of the nonlinear parameters; the two-point method is Smith's).
+    """
+    n = y.size
+    m_after = n - start
+    thetas = np.arange(0, min(max_dead_time, m_after // 2) + 1)
+    r = np.exp(-1.0 / FIT_TIME_CONSTANTS)
+    yr = y[start:][::-1]
+    # Z[θ] for every θ: backward recursion z_k = y_k + r·z_{k+1}
+    z = first_order_recursions(yr, r.tolist(), [1.0] * r.size)[:, ::-1][:, thetas]
+    tail = np.concatenate((np.cumsum(yr)[::-1], [0.0]))[thetas]  # Σ_{t≥θ} y_t
+    m = (m_after - thetas)[None, :].astype(np.float64)  # samples from θ on
+    rr = r[:, None]
+    geo = (1.0 - rr**m) / (1.0 - rr)
+    sx = m - geo
+    sxx = m - 2.0 * geo + (1.0 - rr ** (2.0 * m)) / (1.0 - rr * rr)
+    sxy = tail[None, :] - z
+    sy, syy = float(y.sum()), float(y @ y)
+    cxx = sxx - sx * sx / n
+    cxy = sxy - sx * sy / n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sse = np.where(cxx > 0, (syy - sy * sy / n) - cxy * cxy / cxx, np.inf)
+    i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    gain = float(cxy[i, j] / cxx[i, j]) if cxx[i, j] > 0 else 0.0
+    level = (sy - gain * float(sx[i, j])) / n
+    return int(thetas[j]), float(FIT_TIME_CONSTANTS[i]), gain, level
+
+
+def _fitted_responses(
+    pv: FloatArray,
+    sp: FloatArray,
+    steps: NDArray[np.int64],
+    sigma: float,
+    min_noise: float,
+    max_noise: float,
+    min_samples: int,
+) -> tuple[StepResponse, ...]:
+    """Steps of ``min_noise``-``max_noise`` σ read by ``fopdt_fit`` (see
+    ``sp_step_responses``); the overshoot read on the response averaged over as many samples
+    as bring its noise to a tenth of the step."""
+    out: list[StepResponse] = []
+    bounds = [0, *steps.tolist(), int(pv.size)]
+    for prev, k, nxt in zip(bounds, bounds[1:], bounds[2:], strict=False):
+        size = float(sp[k] - sp[k - 1]) if k > 0 else 0.0
+        small = min_noise * sigma <= abs(size) < max_noise * sigma
+        if k < 1 or nxt - k < 5 * min_samples or not small:
+            continue
+        lo = max(prev, k - FIT_BEFORE)
+        y = (pv[lo : min(nxt, k + FIT_LENGTH)] - float(pv[k - 1])) / size
+        theta, tau, gain, level = fopdt_fit(y, k - lo, FIT_MAX_DEAD_TIME)
+        if not FIT_GAIN[0] <= gain <= FIT_GAIN[1]:
+            continue
+        after = y[k - lo :]
+        width = max(1, math.ceil((10.0 * sigma / abs(size)) ** 2))
+        overshoot = max(0.0, float(np.max(moving_average(after, width))) - level - 1.0)
+        seen = theta + tau <= after.size
+        out.append(
+            StepResponse(
+                k,
+                size,
+                theta,
+                round(tau) if seen else None,
+                nxt - k - theta,
+                overshoot,
+                fitted=True,
+            )
+        )
     return tuple(out)
 
 

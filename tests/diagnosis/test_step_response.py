@@ -14,6 +14,7 @@ from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.step_response import (
     StepResponse,
     all_creep,
+    fopdt_fit,
     sp_step_responses,
     step_slowness,
 )
@@ -148,3 +149,52 @@ def test_a_slip_while_the_pv_settles_keeps_the_sticky_verdict() -> None:
     run = simulate_loop(replace(cfg, valve="he", S=3.0, J=2.0))
     d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type="flow", quantify=False)
     assert d.cause == "stiction", d.notes
+
+
+@pytest.mark.parametrize(("theta", "tau"), [(0, 3), (6, 3), (20, 50), (2, 400)])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_least_squares_fit_reads_a_step_in_three_noise_sigmas(
+    theta: int, tau: int, seed: int
+) -> None:
+    """A response of three noise σ, read over every sample: the time to 63 % (θ + τ) within
+    20 % or three samples, the gain and the starting level within a tenth of the step. (θ
+    and τ trade against each other by a few samples at this noise; the two-point method
+    needs twice the step to read anything.)"""
+    rng = np.random.default_rng(seed)
+    t = np.arange(-200, 1500)
+    clean = np.where(t >= theta, 1.0 - np.exp(-np.clip(t - theta, 0, None) / tau), 0.0)
+    th, ta, gain, level = fopdt_fit(0.2 + clean + rng.normal(0.0, 1 / 3, t.size), 200, 200)
+    assert abs(th + ta - (theta + tau)) <= max(3.0, 0.2 * (theta + tau))
+    assert gain == pytest.approx(1.0, abs=0.1) and level == pytest.approx(0.2, abs=0.1)
+
+
+@pytest.mark.parametrize("pname", ["flow", "temperature", "composition"])
+def test_steps_of_three_to_six_noise_sigmas_judge_the_tuning(pname: str) -> None:
+    """Steps of about 4 σ, too small for the two-point method: the fitted responses say
+    sluggish for the detuned PI (gain × 0.2, integral time × 5) and not for SIMC."""
+    levels = ((0.3, 52.0), (0.65, 50.0))
+    for sluggish in (False, True):
+        cfg, _ = _stepped(pname, sluggish, levels=levels)
+        run = simulate_loop(replace(cfg, noise_std=0.5))
+        steps = np.flatnonzero(np.abs(np.diff(run.sp)) > 1.0) + 1
+        responses = sp_step_responses(run.pv, run.sp, steps)
+        assert len(responses) == 2 and all(r.fitted and r.jump is None for r in responses)
+        slowness = step_slowness(responses)
+        assert slowness is not None and (slowness > 3.0) == sluggish, slowness
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "sluggish_tuning-composition-n6000-steps1-free-quantised-noise0.5-r1",
+        "sluggish_tuning-level-n2000-steps3-free-quantised-noise0.5-r1",
+    ],
+)
+def test_plant_windows_with_small_steps_only_read_sluggish(name: str) -> None:
+    """Plant windows whose set-point steps are 3-6 × the noise σ (they read `ok` before)."""
+    case = plant_window(name)
+    run = simulate_loop(case.config)
+    ts = case.config.sample_time_s
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type=case.loop_type, quantify=False)
+    assert d.cause == "sluggish_tuning", d.notes
+    assert any("least-squares fit" in n for n in d.notes), d.notes
