@@ -59,6 +59,7 @@ from plantcheck.diagnosis.stiction_vote import (
     VoteParams,
     VoteResult,
     applicable_tests,
+    curve_fit_decides,
     is_integrating,
     vote,
 )
@@ -479,6 +480,11 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
     if events is not None:
         tests["stick_slip"] = _events_vote(events, p.stick_slip)
     v = vote(list(tests.values()), p.vote)
+    alone = None
+    if v.decision != "stiction":
+        alone = curve_fit_decides(list(tests.values()), _sustained(run, st), p.vote)
+        if alone is not None:
+            v = replace(v, decision="stiction")
     if v.decision != "stiction":
         split = split_cause(op_s, pv_s, ts, osc, tests, v, st.pi, run.loop_type, p.split)
         if _well_damped(run, st, split):
@@ -497,7 +503,15 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
     if v.decision == "stiction":
         diag.cause = "stiction"
         diag.confidence = _confidence_from_vote(v, True)
-        diag.notes.append(f"stiction: {v.n_stiction} of {v.n_tests} tests agree")
+        if alone is not None and alone.value is not None:
+            diag.notes.append(
+                f"stiction: the curve fit's index {alone.value:.2f} (at least "
+                f"{p.vote.curve_fit_alone:g}, He et al. 2007) on a sustained cycle decides "
+                f"alone ({v.n_stiction} of {v.n_tests} tests say stiction, none of the "
+                "waveform tests says no)"
+            )
+        else:
+            diag.notes.append(f"stiction: {v.n_stiction} of {v.n_tests} tests agree")
         if run.quantify:
             _quantify_into(diag, op_s, pv_s, ts, osc, p)
         if events is not None:
@@ -525,6 +539,21 @@ healthy loops read as either had R 0.14-0.48. The disturbances read as external 
 tables) have less than 0.5: there the ACF is not asked."""
 
 
+def _decay_ratio(run: _Run, st: _Stretch) -> float | None:
+    """Miao & Seborg's ACF decay ratio of the cycle read: the control error's over the
+    stretch, or OP's where the cycle showed in OP."""
+    win = run.win
+    x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
+    return acf_decay_ratio(x)
+
+
+def _sustained(run: _Run, st: _Stretch) -> bool:
+    """The cycle does not die out within a cycle: ACF decay ratio at least
+    ``SplitParams.min_decay_ratio`` (Miao & Seborg 1999)."""
+    ratio = _decay_ratio(run, st)
+    return ratio is not None and ratio >= run.p.split.min_decay_ratio
+
+
 def _well_damped(run: _Run, st: _Stretch, split: SplitResult) -> bool:
     """Where the split reads the cycle as the loop's own (or cannot tie it to anything),
     whether the loop rings on or damps it out: a decay ratio of the ACF below
@@ -536,9 +565,8 @@ def _well_damped(run: _Run, st: _Stretch, split: SplitResult) -> bool:
     periodic load is sustained, whatever its ACF says through the loop's own noise."""
     if split.cause not in DAMPED_CAUSES:
         return False
-    win, p = run.win, run.p
-    x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
-    ratio = acf_decay_ratio(x)
+    p = run.p
+    ratio = _decay_ratio(run, st)
     if ratio is None or ratio >= p.split.min_decay_ratio:
         return False
     run.diag.oscillating = False

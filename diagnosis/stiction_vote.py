@@ -66,6 +66,34 @@ class VoteParams:
     """Tests whose ``stiction`` vote counts only when a waveform-shape test or the stick-slip
     events agree [R]: bicoherence flags any nonlinearity, which a lightly damped cycle with
     noise shows too; Choudhury et al. (2004) confirm it with the PV(OP) shape."""
+    curve_fit_alone: float = 0.73
+    """A curve-fit index (He et al. 2007) at or above this decides ``stiction`` alone, where
+    no waveform-shape test says no stiction and the cycle is sustained (the chain checks the
+    ACF decay ratio; ``curve_fit_decides``). He et al. call 0.6 stiction; a lightly damped
+    linear cycle passes 0.6 too, so alone the index needs a triangle that fits with at most
+    0.37 × the sine's error. Generated plant windows, seeds 1-4 on the three process tables
+    (2,592 windows): aggressive loops read up to 0.71 (at 0.70 three read stiction), one
+    disturbance at 1.2 × the ultimate period 0.726 (it reads stiction at 0.72); sticky valves
+    that read as aggressive tuning or a disturbance 0.6-0.93, 30 of them found at 0.73, about
+    a quarter fewer at 0.75. Real records: no non-sticky loop above 0.69 (a refinery level
+    window that reads ok), ISDB's no-stiction loop 0.41 [R]."""
+
+
+def curve_fit_decides(
+    results: list[StictionTestResult], sustained: bool, params: VoteParams | None = None
+) -> StictionTestResult | None:
+    """The curve-fit result that decides ``stiction`` alone (``VoteParams.curve_fit_alone``),
+    or None. ``sustained``: the cycle does not die out within a cycle (a sticky valve's limit
+    cycle sustains itself; Miao & Seborg's decay ratio at least 0.5)."""
+    p = params or VoteParams()
+    if not sustained:
+        return None
+    if any(r.verdict == "no_stiction" and r.name in SHAPE_TESTS for r in results):
+        return None
+    for r in results:
+        if r.name == "curve_fit" and r.value is not None and r.value >= p.curve_fit_alone:
+            return r
+    return None
 
 
 def vote(results: list[StictionTestResult], params: VoteParams | None = None) -> VoteResult:

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from plantcheck.diagnosis import diagnose
-from plantcheck.diagnosis.chain import ChainParams
 from plantcheck.diagnosis.ellipse import apparent_stiction, fit_ellipse
 from plantcheck.diagnosis.oscillation import detect_oscillation
 from plantcheck.diagnosis.quantification import (
@@ -21,7 +20,6 @@ from plantcheck.diagnosis.quantification import (
     slow_line,
 )
 from plantcheck.diagnosis.stiction_trend import WEEK_S, TrendParams, stiction_trend
-from plantcheck.diagnosis.stiction_vote import VoteParams
 from plantcheck.simulator.cases import process_setup
 from plantcheck.simulator.loop import Disturbance, LoopConfig, PIController, Process, simulate_loop
 
@@ -297,19 +295,13 @@ def test_diagnose_quantifies_on_the_valve_cycle_beneath_an_external_oscillation(
     # of 185 s: the error's ACF mixes both cycles (r = 0.3); band-passed, the valve's own 19 s
     # cycle is the error's dominant oscillation (the load shows in OP). Stiction is found and
     # quantified on that cycle with the load filtered out, and the note says so
-    # The mixed cycles leave only the curve fit and bicoherence voting stiction, which the
-    # default vote no longer takes without a shape test (it read near-critical linear loops as
-    # sticky): the default does not read stiction here, and says the one test for it was not
-    # enough (the split reads the cycle: 7 generated aggressive loops and disturbances with one
-    # such vote get their cause that way). Counted as it used to be, the chain quantifies on
-    # the valve's own cycle.
+    # The mixed cycles leave only the curve fit and bicoherence voting stiction; bicoherence
+    # counts only with a shape test, so the curve fit's own index (0.79, a clear triangle on a
+    # sustained cycle) decides alone (``VoteParams.curve_fit_alone``) and the note says so.
     cfg = _case_config("level", "kano", 1.0, 0.05, 407, 1014617088, None, 184.97746514089928)
     r = simulate_loop(cfg)
-    default = diagnose(r.pv, r.op, cfg.sample_time_s, sp=r.sp, loop_type="level", quantify=False)
-    assert default.cause != "stiction"
-    assert any("stiction not confirmed (1 test for, 0 against)" in n for n in default.notes)
-    counted = ChainParams(vote=VoteParams(shape_confirmed=frozenset()))
-    d = diagnose(r.pv, r.op, cfg.sample_time_s, sp=r.sp, loop_type="level", params=counted)
+    d = diagnose(r.pv, r.op, cfg.sample_time_s, sp=r.sp, loop_type="level")
+    assert any("decides alone (1 of" in n for n in d.notes), d.notes
     assert d.cause == "stiction"
     assert d.oscillation is not None and 15.0 < (d.oscillation.period_s or 0) < 25.0
     quant = d.stiction.quantification

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import plant_window
 from scipy.signal import lfilter
 
+from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.bicoherence import bicoherence_indices
 from plantcheck.diagnosis.horch import horch_ccf, horch_histogram
 from plantcheck.diagnosis.shape_tests import (
@@ -15,7 +17,8 @@ from plantcheck.diagnosis.shape_tests import (
     significant_half_cycles,
 )
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult
-from plantcheck.diagnosis.stiction_vote import applicable_tests, vote
+from plantcheck.diagnosis.stiction_vote import applicable_tests, curve_fit_decides, vote
+from plantcheck.simulator.loop import simulate_loop
 
 T = np.arange(6000, dtype=np.float64)
 PERIOD = 100.0
@@ -140,3 +143,44 @@ def test_applicability_by_loop_type() -> None:
     assert "cross_correlation" not in applicable_tests("level")
     assert "histogram" in applicable_tests("level")
     assert "area_ratio" in applicable_tests("flow")
+
+
+def _cf(value: float) -> StictionTestResult:
+    return StictionTestResult("curve_fit", value, "stiction" if value >= 0.6 else "undecided")
+
+
+def test_a_clearly_triangular_sustained_cycle_decides_alone() -> None:
+    """The curve fit at 0.73 or more decides on a sustained cycle, unless a waveform test
+    says no stiction; below 0.73, or on a cycle that dies out, it does not (a lightly damped
+    linear cycle reads up to 0.71)."""
+    others = [_r("no_stiction", "cross_correlation"), _r("undecided", "relay")]
+    assert curve_fit_decides([_cf(0.75), *others], sustained=True) is not None
+    assert curve_fit_decides([_cf(0.72), *others], sustained=True) is None
+    assert curve_fit_decides([_cf(0.75), *others], sustained=False) is None
+    against = [_cf(0.80), _r("no_stiction", "area_ratio")]
+    assert curve_fit_decides(against, sustained=True) is None
+
+
+@pytest.mark.parametrize(
+    ("name", "cause"),
+    [
+        ("stiction-he-S4-J4-pressure-n3600-steps2-free-continuous-noise0.5-r1", "stiction"),
+        ("stiction-kano-S1-J1-temperature-n3600-steps0-free-continuous-noise0.2-r1", "stiction"),
+        ("stiction-he-S4-J2-flow-n6000-steps3-free-continuous-noise0.5-r1", "stiction"),
+        # the most triangular aggressive loops of the benchmark table (0.69)
+        ("aggressive_tuning-0.83Ku-level-n2000-steps0-limit65-continuous-noise0.05-r1", None),
+        ("aggressive_tuning-0.84Ku-flow-n2000-steps4-free-quantised-noise0.05-r1", None),
+    ],
+)
+def test_noisy_limit_cycles_with_a_triangular_op_read_stiction(
+    name: str, cause: str | None
+) -> None:
+    """Sticky valves in a noisy limit cycle that read as aggressive tuning or a disturbance
+    (no test but the curve fit agreed); aggressive loops just below the limit keep their
+    cause."""
+    case = plant_window(name)
+    run = simulate_loop(case.config)
+    ts = case.config.sample_time_s
+    d = diagnose(run.pv, run.op, ts, sp=run.sp, loop_type=case.loop_type, quantify=False)
+    assert d.cause == (cause or case.cause), d.notes
+    assert any("decides alone" in n for n in d.notes) == (cause == "stiction"), d.notes
