@@ -171,6 +171,8 @@ class _Run:
     events: StickSlipResult | None = None
     pi_window: PIEstimate | None = None
     gain_sign: int = 1
+    decay_ratios: dict[tuple[int, int, bool], float | None] = field(default_factory=dict)
+    """ACF decay ratios read, by stretch (``_decay_ratio``)."""
 
 
 @dataclass(frozen=True)
@@ -542,9 +544,12 @@ tables) have less than 0.5: there the ACF is not asked."""
 def _decay_ratio(run: _Run, st: _Stretch) -> float | None:
     """Miao & Seborg's ACF decay ratio of the cycle read: the control error's over the
     stretch, or OP's where the cycle showed in OP."""
-    win = run.win
-    x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
-    return acf_decay_ratio(x)
+    key = (st.a, st.b, st.on_op)
+    if key not in run.decay_ratios:
+        win = run.win
+        x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
+        run.decay_ratios[key] = acf_decay_ratio(x)
+    return run.decay_ratios[key]
 
 
 def _sustained(run: _Run, st: _Stretch) -> bool:
