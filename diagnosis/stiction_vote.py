@@ -74,7 +74,7 @@ class VoteParams:
     0.37 × the sine's error. Generated plant windows, seeds 1-4 on the three process tables
     (2,592 windows): aggressive loops read up to 0.71 (at 0.70 three read stiction), one
     disturbance at 1.2 × the ultimate period 0.726 (it reads stiction at 0.72); sticky valves
-    that read as aggressive tuning or a disturbance 0.6-0.93, 30 of them found at 0.73, about
+    that read as aggressive tuning or a disturbance 0.6-0.93, 28 of them found at 0.73, about
     a quarter fewer at 0.75. Real records: no non-sticky loop above 0.69 (a refinery level
     window that reads ok), ISDB's no-stiction loop 0.41 [R]."""
 
