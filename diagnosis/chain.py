@@ -132,7 +132,12 @@ def run_stiction_tests(
         hc_s = significant_half_cycles(
             ss, ts, 0.1 * float(np.std(ss)), amp, params.shape.curvefit_min_half_samples
         )
-        out["curve_fit"] = curve_fit_index(hc_s, params.shape)
+        shape = (
+            replace(params.shape, curvefit_yes=params.shape.curvefit_yes_integrating)
+            if integrating
+            else params.shape
+        )
+        out["curve_fit"] = curve_fit_index(hc_s, shape)
     if "cross_correlation" in names:
         out["cross_correlation"] = horch_ccf(op, pv, ts, period, params.horch)
     if "histogram" in names:

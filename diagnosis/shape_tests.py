@@ -42,6 +42,12 @@ class ShapeParams:
     """He SI at or above this -> stiction ([V] controllerPlotFcn3.m)."""
     curvefit_no: float = 0.4
     """He SI at or below this -> no stiction ([V])."""
+    curvefit_yes_integrating: float = 0.65
+    """He SI at or above this -> stiction on a level loop, whose PV the fit reads: a level
+    integrates the flow, so even a linear cycle's PV leans toward the triangle. Generated plant
+    windows (seeds 1-4, three process tables) and the matrix: aggressive level loops read up
+    to 0.64, sticky ones whose Horch histogram agrees 0.67 and more (one at 0.665); the same
+    verdicts from 0.65 to 0.66, at 0.67 a sticky window is lost [R]."""
     area_yes: float = 1.2
     """Singhal–Salsbury R above this -> stiction ([R] margin around 1)."""
     area_no: float = 0.9

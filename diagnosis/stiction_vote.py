@@ -66,6 +66,14 @@ class VoteParams:
     """Tests whose ``stiction`` vote counts only when a waveform-shape test or the stick-slip
     events agree [R]: bicoherence flags any nonlinearity, which a lightly damped cycle with
     noise shows too; Choudhury et al. (2004) confirm it with the PV(OP) shape."""
+    curve_fit_confirmed: frozenset[str] = frozenset({"histogram"})
+    """Tests whose ``stiction`` vote counts only when the curve fit says stiction too [R]:
+    Horch's second-difference histogram is peaked for a level loop ringing in bursts after
+    set-point moves or clamps as for a sticky one; only the PV's triangular shape (He et al.
+    2007, ``ShapeParams.curvefit_yes_integrating``) tells them apart. Generated windows: seven
+    aggressive level loops (seeds 1-4, three process tables) no longer read stiction, no sticky
+    one lost; refinery: the one non-sticky level window that read stiction (2111LIC31102B)
+    does not."""
     curve_fit_alone: float = 0.73
     """A curve-fit index (He et al. 2007) at or above this decides ``stiction`` alone, where
     no waveform-shape test says no stiction and the cycle is sustained (the chain checks the
@@ -100,6 +108,13 @@ def vote(results: list[StictionTestResult], params: VoteParams | None = None) ->
     """Combine applicable test verdicts (methods.md §3.4)."""
     p = params or VoteParams()
     used = [r for r in results if r.verdict != "not_applicable"]
+    if not any(r.name == "curve_fit" and r.verdict == "stiction" for r in used):
+        used = [
+            replace(r, verdict="undecided")
+            if r.verdict == "stiction" and r.name in p.curve_fit_confirmed
+            else r
+            for r in used
+        ]
     shape_says = any(r.verdict == "stiction" and r.name in CONFIRMING_TESTS for r in used)
     if not shape_says:
         used = [

@@ -145,6 +145,14 @@ def test_applicability_by_loop_type() -> None:
     assert "area_ratio" in applicable_tests("flow")
 
 
+def test_horch_histogram_counts_with_a_triangular_pv_only() -> None:
+    """A peaked curvature histogram reads a level ringing in bursts as it reads a sticky one:
+    it votes (and confirms bicoherence) only beside the curve fit's stiction vote."""
+    bursts = [_r("stiction", "histogram"), _r("stiction", "bicoherence"), _r("undecided", "relay")]
+    assert vote([*bursts, _r("undecided", "curve_fit")]).decision == "undecided"
+    assert vote([*bursts, _r("stiction", "curve_fit")]).decision == "stiction"
+
+
 def _cf(value: float) -> StictionTestResult:
     return StictionTestResult("curve_fit", value, "stiction" if value >= 0.6 else "undecided")
 
@@ -170,6 +178,8 @@ def test_a_clearly_triangular_sustained_cycle_decides_alone() -> None:
         # the most triangular aggressive loops of the benchmark table (0.69)
         ("aggressive_tuning-0.83Ku-level-n2000-steps0-limit65-continuous-noise0.05-r1", None),
         ("aggressive_tuning-0.84Ku-flow-n2000-steps4-free-quantised-noise0.05-r1", None),
+        # a level ringing in bursts: Horch's histogram is peaked, the PV is no triangle (0.62)
+        ("aggressive_tuning-0.87Ku-level-n3600-steps1-free-continuous-noise0.05-r1", None),
     ],
 )
 def test_noisy_limit_cycles_with_a_triangular_op_read_stiction(
