@@ -176,8 +176,6 @@ class _Run:
     events: StickSlipResult | None = None
     pi_window: PIEstimate | None = None
     gain_sign: int = 1
-    decay_ratios: dict[tuple[int, int, bool], float | None] = field(default_factory=dict)
-    """ACF decay ratios read, by stretch (``_decay_ratio``)."""
 
 
 @dataclass(frozen=True)
@@ -476,7 +474,7 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
     if run.exclude_stiction:
         no_stiction = VoteResult("no_stiction", 0, 0, 0, -1.0)
         split = split_cause(op_s, pv_s, ts, osc, {}, no_stiction, st.pi, run.loop_type, p.split)
-        if _well_damped(run, st, split):
+        if _well_damped(run, st, split, _decay_ratio(run, st)):
             return
         _oscillation_into(diag, osc)
         diag.cause, diag.confidence = split.cause, split.confidence
@@ -489,13 +487,15 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
     v = vote(list(tests.values()), p.vote)
     alone = None
     if v.decision != "stiction":
-        alone = curve_fit_decides(list(tests.values()), _sustained(run, st), p.vote)
+        ratio = _decay_ratio(run, st)
+        sustained = ratio is not None and ratio >= p.split.min_decay_ratio
+        alone = curve_fit_decides(list(tests.values()), sustained, p.vote)
         if alone is not None:
             v = replace(v, decision="stiction")
-    if v.decision != "stiction":
-        split = split_cause(op_s, pv_s, ts, osc, tests, v, st.pi, run.loop_type, p.split)
-        if _well_damped(run, st, split):
-            return
+        else:
+            split = split_cause(op_s, pv_s, ts, osc, tests, v, st.pi, run.loop_type, p.split)
+            if _well_damped(run, st, split, ratio):
+                return
     _oscillation_into(diag, osc)
     diag.stiction["tests"] = _tests_json(tests)
     diag.stiction["votes"] = {name: r.verdict for name, r in tests.items()}
@@ -548,23 +548,14 @@ tables) have less than 0.5: there the ACF is not asked."""
 
 def _decay_ratio(run: _Run, st: _Stretch) -> float | None:
     """Miao & Seborg's ACF decay ratio of the cycle read: the control error's over the
-    stretch, or OP's where the cycle showed in OP."""
-    key = (st.a, st.b, st.on_op)
-    if key not in run.decay_ratios:
-        win = run.win
-        x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
-        run.decay_ratios[key] = acf_decay_ratio(x)
-    return run.decay_ratios[key]
+    stretch, or OP's where the cycle showed in OP. Read once per window: the curve fit's
+    sustained-cycle check and ``_well_damped`` both use it."""
+    win = run.win
+    x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
+    return acf_decay_ratio(x)
 
 
-def _sustained(run: _Run, st: _Stretch) -> bool:
-    """The cycle does not die out within a cycle: ACF decay ratio at least
-    ``SplitParams.min_decay_ratio`` (Miao & Seborg 1999)."""
-    ratio = _decay_ratio(run, st)
-    return ratio is not None and ratio >= run.p.split.min_decay_ratio
-
-
-def _well_damped(run: _Run, st: _Stretch, split: SplitResult) -> bool:
+def _well_damped(run: _Run, st: _Stretch, split: SplitResult, ratio: float | None) -> bool:
     """Where the split reads the cycle as the loop's own (or cannot tie it to anything),
     whether the loop rings on or damps it out: a decay ratio of the ACF below
     ``SplitParams.min_decay_ratio`` (Miao & Seborg 1999) is a well damped loop whose noise and
@@ -572,11 +563,11 @@ def _well_damped(run: _Run, st: _Stretch, split: SplitResult) -> bool:
     of one or two samples shows a spectral bump that the regularity test can take for an
     oscillation). Such a loop is judged as a quiet one (tuning, stick-slip events, or ok), with
     the reason in the notes. A disturbance the split reads as external keeps its verdict: a
-    periodic load is sustained, whatever its ACF says through the loop's own noise."""
+    periodic load is sustained, whatever its ACF says through the loop's own noise. ``ratio``:
+    ``_decay_ratio`` of the stretch."""
     if split.cause not in DAMPED_CAUSES:
         return False
     p = run.p
-    ratio = _decay_ratio(run, st)
     if ratio is None or ratio >= p.split.min_decay_ratio:
         return False
     run.diag.oscillating = False

@@ -104,25 +104,25 @@ def curve_fit_decides(
     return None
 
 
+def _unconfirmed(
+    results: list[StictionTestResult], names: frozenset[str]
+) -> list[StictionTestResult]:
+    """``results`` with the ``stiction`` votes of the tests ``names`` made ``undecided``: no
+    test that they need agreed."""
+    return [
+        replace(r, verdict="undecided") if r.verdict == "stiction" and r.name in names else r
+        for r in results
+    ]
+
+
 def vote(results: list[StictionTestResult], params: VoteParams | None = None) -> VoteResult:
     """Combine applicable test verdicts (methods.md §3.4)."""
     p = params or VoteParams()
     used = [r for r in results if r.verdict != "not_applicable"]
     if not any(r.name == "curve_fit" and r.verdict == "stiction" for r in used):
-        used = [
-            replace(r, verdict="undecided")
-            if r.verdict == "stiction" and r.name in p.curve_fit_confirmed
-            else r
-            for r in used
-        ]
-    shape_says = any(r.verdict == "stiction" and r.name in CONFIRMING_TESTS for r in used)
-    if not shape_says:
-        used = [
-            replace(r, verdict="undecided")
-            if r.verdict == "stiction" and r.name in p.shape_confirmed
-            else r
-            for r in used
-        ]
+        used = _unconfirmed(used, p.curve_fit_confirmed)
+    if not any(r.verdict == "stiction" and r.name in CONFIRMING_TESTS for r in used):
+        used = _unconfirmed(used, p.shape_confirmed)
     yes = sum(r.verdict == "stiction" for r in used)
     no = sum(r.verdict == "no_stiction" for r in used)
     n = len(used)
