@@ -263,6 +263,19 @@ def test_a_set_point_kick_is_no_stuck_phase() -> None:
     assert d.cause == "ok", d.notes
 
 
+def test_a_jump_far_beyond_the_travel_through_the_gain_is_a_load() -> None:
+    """A sluggish composition loop: a load step drops the PV by 2 units (the process gain is
+    about 0.4 per % OP) 70 samples after a set-point step, while OP had crept by 0.1 %. The
+    two-model test confirms it as a slip; no valve slips 50 times the travel it accumulated
+    (``StickSlipParams.slip_gain_ratio``)."""
+    case = plant_window("sluggish_tuning-composition-n2000-steps3-free-quantised-noise0.05-r0")
+    r = simulate_loop(case.config)
+    ts = case.config.sample_time_s
+    assert _diagnosed(r, ts, case.loop_type, slip_gain_ratio=math.inf).cause == "stiction"
+    d = _diagnosed(r, ts, case.loop_type)
+    assert d.cause == "sluggish_tuning", d.notes
+
+
 @pytest.fixture(scope="module")
 def short_family() -> collections.Counter[tuple[str, bool]]:
     found: collections.Counter[tuple[str, bool]] = collections.Counter()
