@@ -71,8 +71,13 @@ class StickSlipParams:
     """Shortest window in which a slip is read, samples."""
     slip_sigma: float = 5.0
     """A slip moves the PV toward the set point by at least this many PV-noise σ ..."""
-    slip_resolution: float = 3.0
-    """... and this many PV resolution steps (quantised or compressed PV) ..."""
+    slip_resolution: float = 2.5
+    """... and this many PV resolution steps (quantised or compressed PV) ... Short-window
+    family, seeds 1-4: at 3, 12 of the sticky slow loops (noise 0.2-0.5 %, compressed or
+    quantised PV) had no candidate at all; at 2.5 a slow loop and a flow (seeds 1-2) and two
+    slow loops (seeds 3-4) with a compressed PV are found, no false alarm on any set, nothing
+    else moves; at 2.75 one fewer, at 2.25 a healthy short-window pressure loop, a healthy
+    flow and a sluggish plant window read stiction [R]."""
     slip_wander: float = 2.0
     """... and this many times the PV's wander (σ about a straight line) in the stuck phase."""
     min_stick_slip_ratio: float = 3.0

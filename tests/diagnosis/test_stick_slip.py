@@ -263,6 +263,23 @@ def test_a_set_point_kick_is_no_stuck_phase() -> None:
     assert d.cause == "ok", d.notes
 
 
+@pytest.mark.parametrize(
+    ("seed", "name"),
+    [
+        (1, "stiction-kano-S2-J1.26-events1-temperature-steps1-noise0.2-compressed-r1"),
+        (2, "stiction-he-S2-J1.45-events3-flow-steps3-noise0.5-compressed-r2"),
+    ],
+)
+def test_a_slip_of_two_and_a_half_recording_steps_is_a_candidate(seed: int, name: str) -> None:
+    """A compressed PV records a slip the generator made 4 x its dead band in a few coarse
+    steps; at 3 steps (``StickSlipParams.slip_resolution``) these windows had no candidate."""
+    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
+    r = simulate_loop(case.config)
+    assert _diagnosed(r, 10.0, case.loop_type, slip_resolution=3.0).cause != "stiction"
+    d = _diagnosed(r, 10.0, case.loop_type)
+    assert d.cause == "stiction", d.notes
+
+
 def test_a_jump_far_beyond_the_travel_through_the_gain_is_a_load() -> None:
     """A sluggish composition loop: a load step drops the PV by 2 units (the process gain is
     about 0.4 per % OP) 70 samples after a set-point step, while OP had crept by 0.1 %. The
