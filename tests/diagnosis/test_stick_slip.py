@@ -280,6 +280,40 @@ def test_a_slip_of_two_and_a_half_recording_steps_is_a_candidate(seed: int, name
     assert d.cause == "stiction", d.notes
 
 
+@pytest.mark.parametrize(
+    ("seed", "name"),
+    [
+        (1, "stiction-kano-S3-J2.33-events1-temperature-steps3-noise0.2-quantised-r1"),
+        (1, "stiction-kano-S2-J1.84-events1-flow-steps0-noise0.05-quantised-r3"),
+        (2, "stiction-kano-S6-J3.63-events1-flow-steps1-noise0.2-quantised-r2"),
+    ],
+)
+def test_a_ramp_that_is_much_of_ops_travel_needs_less_evidence(seed: int, name: str) -> None:
+    """One slip in the window: OP's ramp while the valve stuck is a quarter or more of all its
+    travel, and the valve-step model explains the PV 4-5 x better than OP does, short of the
+    5 x any candidate needs (``StickSlipParams.ramp_share``, ``evidence_ratio_ramp``)."""
+    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
+    r = simulate_loop(case.config)
+    assert _diagnosed(r, 10.0, case.loop_type, evidence_ratio_ramp=5.0).cause != "stiction"
+    d = _diagnosed(r, 10.0, case.loop_type)
+    assert d.cause == "stiction", d.notes
+
+
+@pytest.mark.parametrize(
+    ("kc", "tau_d", "seed"), [(0.4, 200.0, 7), (1.2, 100.0, 8), (1.6, 600.0, 8)]
+)
+def test_no_ramp_of_a_coloured_load_is_much_of_ops_travel(
+    kc: float, tau_d: float, seed: int
+) -> None:
+    """A coloured load turns OP many times, so no one ramp is a quarter of its travel (every
+    candidate reads at most 0.17) and each keeps the full evidence: with the lower ratio for
+    every candidate (``ramp_share`` 0) these healthy loops read stiction (10 of the 24)."""
+    r = simulate_loop(_coloured_load_loop(kc, tau_d, seed))
+    assert _diagnosed(r, 10.0, "pressure", ramp_share=0.0).cause == "stiction"
+    d = _diagnosed(r, 10.0, "pressure")
+    assert d.cause != "stiction", d.notes
+
+
 def test_a_jump_far_beyond_the_travel_through_the_gain_is_a_load() -> None:
     """A sluggish composition loop: a load step drops the PV by 2 units (the process gain is
     about 0.4 per % OP) 70 samples after a set-point step, while OP had crept by 0.1 %. The
@@ -347,7 +381,12 @@ def test_a_clear_slip_in_noise_is_confirmed_by_the_model() -> None:
     """Noise fills both models' residuals, so a clear slip's linear residual cannot be 5 × the
     valve step's: where the step fits to the noise, 2.5 × and 200 noise variances confirm it
     (the short-window family's recall at noise 0.5 % went from 7 to 12 of 24)."""
-    before = replace(StickSlipParams(), evidence_ratio_fitted=5.0, evidence_chi2_fitted=300.0)
+    before = replace(
+        StickSlipParams(),
+        evidence_ratio_fitted=5.0,
+        evidence_chi2_fitted=300.0,
+        evidence_ratio_ramp=5.0,
+    )
     confirmed = old_rule = 0
     for seed in range(10):
         pv, op, sp = _noisy_slip(seed)
