@@ -21,9 +21,12 @@ overshot, too late for the turn to mark the slip.
 Real sticky valves show one to three such events in a two-hour window, often around set-point
 steps (refinery records of ``../shared/data/refinery-stiction-dev``). Evidence accumulates over
 events: their number, the consistency of the OP travel at breakaway (the stickband, Kano et
-al. 2004) and direction reversals. Every threshold is a multiple of the signals' own noise or
-resolution [R, calibrated on the labelled refinery records and the generated short-window
-family, ``simulator.cases.generate_short_window_cases``].
+al. 2004) and direction reversals. A window with so few events is itself evidence: OP then
+moves mostly to break the valve loose, so a stuck ramp that is much of OP's travel in the window
+needs less confirmation than one of the many small ramps of a loop whose OP answers every load
+(``StickSlipParams.ramp_share``). Every threshold is a multiple of the signals' own noise or
+resolution, or a share of OP's own travel [R, calibrated on the labelled refinery records and
+the generated short-window family, ``simulator.cases.generate_short_window_cases``].
 
 A second, degenerate signature is a valve that does not respond at all: OP travels through many
 % while the control error keeps its sign and the PV stays flat (``_unresponsive``).
