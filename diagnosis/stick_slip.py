@@ -768,9 +768,10 @@ def detect_stick_slip(
                     pv, dyn, start, ev.breakaway, end, toward, gain_sign, integrating
                 )
                 fitted = sse_slip <= p.fitted_noise * (end - start + 1) * noise_var
-                ratio_needed = p.evidence_ratio_fitted if fitted else p.evidence_ratio
                 if ramp:
                     ratio_needed = p.evidence_ratio_ramp_fitted if fitted else p.evidence_ratio_ramp
+                else:
+                    ratio_needed = p.evidence_ratio_fitted if fitted else p.evidence_ratio
                 chi2 = (sse_lin - sse_slip) / noise_var
                 chi2_needed = p.evidence_chi2_fitted if fitted else p.evidence_chi2
                 if sse_lin >= ratio_needed * sse_slip and chi2 >= chi2_needed:
