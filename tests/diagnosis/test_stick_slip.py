@@ -210,6 +210,13 @@ def test_healthy_loops_under_coloured_loads_are_mostly_not_stiction() -> None:
     assert sum(calls) <= 3, sum(calls)
 
 
+def _short_window(seed: int, name: str) -> tuple[LoopRecord, str]:
+    """One window of the short-window family (``per_cell=4``, as the benchmark draws it),
+    simulated, with its loop type."""
+    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
+    return simulate_loop(case.config), case.loop_type
+
+
 def _diagnosed(r: LoopRecord, ts: float, loop_type: str, **stick_slip: float) -> Diagnosis:
     """The chain's diagnosis of a simulated window, with these stick-slip parameters changed
     (none: the defaults), to show what one rule of the detector does."""
@@ -243,10 +250,9 @@ def test_a_slip_cut_short_by_the_next_turn_of_op_is_read_whole(seed: int, name: 
     turns OP again within a few samples: read only up to that turn, the slip's response is
     too short for the two-model test. The stuck phase was clean, so the whole response is read
     as well (``StickSlipParams.full_slip_follow``)."""
-    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
-    r = simulate_loop(case.config)
-    assert _diagnosed(r, 10.0, case.loop_type, full_slip_follow=-math.inf).cause != "stiction"
-    d = _diagnosed(r, 10.0, case.loop_type)
+    r, loop_type = _short_window(seed, name)
+    assert _diagnosed(r, 10.0, loop_type, full_slip_follow=-math.inf).cause != "stiction"
+    d = _diagnosed(r, 10.0, loop_type)
     assert d.cause == "stiction", d.notes
 
 
@@ -273,10 +279,9 @@ def test_a_set_point_kick_is_no_stuck_phase() -> None:
 def test_a_slip_of_two_and_a_half_recording_steps_is_a_candidate(seed: int, name: str) -> None:
     """A compressed PV records a slip the generator made 4 x its dead band in a few coarse
     steps; at 3 steps (``StickSlipParams.slip_resolution``) these windows had no candidate."""
-    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
-    r = simulate_loop(case.config)
-    assert _diagnosed(r, 10.0, case.loop_type, slip_resolution=3.0).cause != "stiction"
-    d = _diagnosed(r, 10.0, case.loop_type)
+    r, loop_type = _short_window(seed, name)
+    assert _diagnosed(r, 10.0, loop_type, slip_resolution=3.0).cause != "stiction"
+    d = _diagnosed(r, 10.0, loop_type)
     assert d.cause == "stiction", d.notes
 
 
@@ -294,11 +299,10 @@ def test_a_ramp_that_is_much_of_ops_travel_needs_less_evidence(seed: int, name: 
     valve-step model explains the PV 4-5 x better than OP does, short of the 5 x any candidate
     needs, or (the last, in noise σ 0.5 %) fits to the noise and does 2.3 x better, short of
     2.5 x (``StickSlipParams.ramp_share``, ``evidence_ratio_ramp[_fitted]``)."""
-    case = next(c for c in generate_short_window_cases(seed=seed, per_cell=4) if c.name == name)
-    r = simulate_loop(case.config)
+    r, loop_type = _short_window(seed, name)
     without = {"evidence_ratio_ramp": 5.0, "evidence_ratio_ramp_fitted": 2.5}
-    assert _diagnosed(r, 10.0, case.loop_type, **without).cause != "stiction"
-    d = _diagnosed(r, 10.0, case.loop_type)
+    assert _diagnosed(r, 10.0, loop_type, **without).cause != "stiction"
+    d = _diagnosed(r, 10.0, loop_type)
     assert d.cause == "stiction", d.notes
 
 
