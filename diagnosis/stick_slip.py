@@ -24,9 +24,11 @@ events: their number, the consistency of the OP travel at breakaway (the stickba
 al. 2004) and direction reversals. A window with so few events is itself evidence: OP then
 moves mostly to break the valve loose, so a stuck ramp that is much of OP's travel in the window
 needs less confirmation than one of the many small ramps of a loop whose OP answers every load
-(``StickSlipParams.ramp_share``). Every threshold is a multiple of the signals' own noise or
-resolution, or a share of OP's own travel [R, calibrated on the labelled refinery records and
-the generated short-window family, ``simulator.cases.generate_short_window_cases``].
+(``StickSlipParams.ramp_share``); such a ramp is also read on the PV averaged over a few
+samples, where noise hides less of a slip (``smooth_share``). Every threshold is a multiple of
+the signals' own noise or resolution, or a share of OP's own travel [R, calibrated on the
+labelled refinery records and the generated short-window family,
+``simulator.cases.generate_short_window_cases``].
 
 A second, degenerate signature is a valve that does not respond at all: OP travels through many
 % while the control error keeps its sign and the PV stays flat (``_unresponsive``).
@@ -132,8 +134,9 @@ class StickSlipParams:
     """... where the stick-slip model's residual must be at most 1/this of the linear one's,
     or ``evidence_ratio_smooth_fitted`` where it fits to the averaged noise (the χ² as for
     any other). In a noisy slow loop (σ 0.2-0.5 % of span) the noise fills both models'
-    residuals, so that the raw PV cannot show even a clear slip 2.5 × better explained by a
-    valve step; averaging takes two thirds of the noise out of both and leaves the slip.
+    residuals, so that the raw PV shows even a clear slip only a little better explained by a
+    valve step than by OP; averaging takes two thirds of the noise out of both and leaves the
+    slip.
     It raises a healthy loop's ratios as well, hence the higher ratios and the share: under
     coloured loads every candidate's ramp is at most 0.17 of OP's travel, and OP turns twice a
     cycle in a periodic disturbance. Short-window family: 5 more sticky windows found on seeds
