@@ -8,7 +8,7 @@ from typing import Annotated, Protocol
 
 from fastapi import Depends, Header, HTTPException, Query, Request
 
-from plantcheck.api.models import Readiness
+from plantcheck.api.models import Readiness, StorageOut
 from plantcheck.core.source_health import SourceHealth
 from plantcheck.storage.store import LoopRow, Store
 
@@ -39,6 +39,8 @@ class ServiceBackend(Protocol):
     async def readiness(self) -> Readiness: ...
 
     def sources(self) -> list[SourceHealth]: ...
+
+    def storage_health(self) -> StorageOut: ...
 
     async def diagnose_now(self, loop_id: str) -> str | None: ...
 

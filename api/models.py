@@ -127,7 +127,9 @@ class StictionReport(BaseModel):
 
 class Readiness(BaseModel):
     ready: bool
-    storage: bool
+    storage: bool = Field(
+        description="The database answers reads and takes this process's sample commits."
+    )
     scheduler: bool
     sources: bool = Field(description="No source down past its grace period (down_grace_s).")
     sources_down: list[str] = Field(default=[], description="Sources down past their grace.")
@@ -136,6 +138,33 @@ class Readiness(BaseModel):
         description="single: the only process (SQLite); leader: holds the scheduler lock "
         "(PostgreSQL); standby: serves the API and takes over when the leader stops.",
     )
+    storage_writes: bool = Field(
+        True, description="Sample commits succeed (false while the database refuses writes)."
+    )
+    buffer: bool = Field(
+        True, description="The durable buffer takes what the database cannot (false: failing)."
+    )
+    problems: list[str] = Field(
+        default=[], description="What is not ready, one sentence each (storage, buffer, ...)."
+    )
+
+
+class StorageOut(BaseModel):
+    """Where this process's samples go: the database, the durable buffer, memory."""
+
+    ingesting: bool = Field(description="This process collects samples (false: API only).")
+    database: Literal["up", "down"] = Field(description="down: sample commits fail.")
+    database_since: str | None = Field(description="When commits began to fail.")
+    database_error: str = Field(description="The most recent commit failure, empty if none.")
+    buffer: Literal["up", "down"] = Field(description="down: the durable buffer's disk fails.")
+    buffer_since: str | None = Field(description="When the buffer began to fail.")
+    buffer_error: str = Field(description="The most recent buffer failure, empty if none.")
+    buffer_path: str
+    samples_in_buffer: int
+    samples_in_memory: int = Field(description="Held while neither side takes them.")
+    memory_max_samples: int
+    samples_dropped: int = Field(description="Lost since start (buffer or memory full).")
+    samples_stored: int
 
 
 class SourceOut(BaseModel):

@@ -30,6 +30,7 @@ from plantcheck.api.models import (
     SampleOut,
     SourceOut,
     State,
+    StorageOut,
 )
 from plantcheck.core.names import NAME_PATTERN
 from plantcheck.core.vocabulary import Cause, LoopType
@@ -260,6 +261,13 @@ async def list_sources(backend: Backend) -> list[SourceOut]:
         )
         for h in backend.sources()
     ]
+
+
+@router.get("/storage", response_model=StorageOut, responses=UNAUTHORIZED)
+async def storage_health(backend: Backend) -> StorageOut:
+    """Where this process's samples go: the database (down while commits fail), the durable
+    buffer (down while its disk fails), samples held in memory and dropped."""
+    return backend.storage_health()
 
 
 @router.post(

@@ -65,10 +65,18 @@ class Drill:
     sim: subprocess.Popen[bytes] | None = None
     service: subprocess.Popen[bytes] | None = None
     started_at: float = 0.0
+    db_dir: Path | None = None
+    """Where the database lives (default: ``folder``); the disk-fault tests use a small disk."""
+    buffer_dir: Path | None = None
+    """Where the durable buffer lives (default: ``folder``)."""
 
     @property
     def db(self) -> Path:
-        return self.folder / "soak.db"
+        return (self.db_dir or self.folder) / "soak.db"
+
+    @property
+    def api_url(self) -> str:
+        return f"http://127.0.0.1:{self.api}"
 
     @property
     def log(self) -> Path:
@@ -81,7 +89,8 @@ class Drill:
     def write_config(self) -> None:
         self.config.write_text(
             f'[storage]\nurl = "sqlite+aiosqlite:///{self.db}"\n'
-            f'buffer_path = "{self.folder / "buffer.db"}"\ncommit_interval_s = 0.5\n\n'
+            f'buffer_path = "{(self.buffer_dir or self.folder) / "buffer.db"}"\n'
+            "commit_interval_s = 0.5\n\n"
             f"[api]\nport = {self.api}\n\n"
             "[scheduler]\nwindow_s = 600\nperiod_s = 60\nworkers = 1\n\n"
             f'[[source]]\nname = "plc"\nprotocol = "modbus"\nport = {self.modbus}\n'
@@ -179,8 +188,10 @@ class Drill:
 
 
 @contextmanager
-def drill(folder: Path, speed: float = 1.0) -> Iterator[Drill]:
-    d = Drill(folder, speed)
+def drill(
+    folder: Path, speed: float = 1.0, db_dir: Path | None = None, buffer_dir: Path | None = None
+) -> Iterator[Drill]:
+    d = Drill(folder, speed, db_dir=db_dir, buffer_dir=buffer_dir)
     try:
         d.start()
         yield d

@@ -96,8 +96,13 @@ class StorageConfig(_Strict):
     """Hourly roll-ups of every signal (count, mean, lowest, highest: the long trends, read
     with ``GET /api/v1/loops/{id}/samples?resolution=hour``) are kept this long."""
     buffer_path: str = "plantcheck-buffer.db"
-    """Local durable buffer used while the store is unreachable."""
-    buffer_max_samples: int = Field(5_000_000, ge=1000)
+    """Local durable buffer used while the store is unreachable. Put it on another disk or
+    volume than the database: when one disk fills or turns read-only, the other takes the
+    samples (on one disk they wait in memory, at most ``memory_max_samples``)."""
+    buffer_max_samples: int = Field(5_000_000, ge=1000, le=1_000_000_000)
+    memory_max_samples: int = Field(500_000, ge=1000, le=50_000_000)
+    """Samples held in memory while neither the database nor the durable buffer takes them
+    (about 200 bytes each); past this, new samples are dropped, counted and marked as a gap."""
 
     @field_validator("url")
     @classmethod

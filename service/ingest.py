@@ -172,6 +172,7 @@ class Ingestion:
             store,
             Path(cfg.storage.buffer_path),
             buffer_max_samples=cfg.storage.buffer_max_samples,
+            memory_max_samples=cfg.storage.memory_max_samples,
             commit_interval_s=cfg.storage.commit_interval_s,
             retention_s=cfg.storage.retention_days * 86400.0,
             rollup_tags=tag_ids,

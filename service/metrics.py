@@ -9,6 +9,9 @@
   ``plantcheck_loop_state{loop, state}``: 1 for each loop's current state.
 - ``plantcheck_store_up``: 1 while the sample writer commits to the database, 0 while it
   buffers on disk; ``plantcheck_store_failures_total``: failed commits.
+- ``plantcheck_buffer_up``: 1 while the durable buffer takes samples, 0 while its disk fails;
+  ``plantcheck_samples_held``: samples held in memory (neither side takes them);
+  ``plantcheck_samples_dropped_total``: samples lost (buffer or memory full).
 - ``plantcheck_source_up{source, protocol}``: 1 while the source delivers data, 0 while it is
   down or not yet connected.
 - ``plantcheck_diagnoses_total``: diagnoses by outcome (``done``, ``failed``).
@@ -86,6 +89,22 @@ class ServiceMetrics:
             "plantcheck_store_failures", "Failed commits of samples to the database.", registry=r
         )
         self._store_failures_seen = 0
+        self.buffer_up = Gauge(
+            "plantcheck_buffer_up",
+            "1 while the durable buffer takes samples, 0 while its disk fails.",
+            registry=r,
+        )
+        self.samples_held = Gauge(
+            "plantcheck_samples_held",
+            "Samples held in memory because neither the database nor the buffer takes them.",
+            registry=r,
+        )
+        self.samples_dropped = Counter(
+            "plantcheck_samples_dropped",
+            "Samples lost because the durable buffer or the memory queue was full.",
+            registry=r,
+        )
+        self._dropped_seen = 0
         self.source_up = Gauge(
             "plantcheck_source_up",
             "1 while the source delivers data, else 0.",
@@ -155,6 +174,14 @@ class ServiceMetrics:
         if failures > self._store_failures_seen:
             self.store_failures.inc(failures - self._store_failures_seen)
             self._store_failures_seen = failures
+
+    def set_buffer(self, up: bool, held: int, dropped: int) -> None:
+        """The durable buffer's state, the samples held in memory, the samples lost so far."""
+        self.buffer_up.set(1 if up else 0)
+        self.samples_held.set(held)
+        if dropped > self._dropped_seen:
+            self.samples_dropped.inc(dropped - self._dropped_seen)
+            self._dropped_seen = dropped
 
     def set_sources(self, sources: Sequence[SourceHealth]) -> None:
         for h in sources:

@@ -16,7 +16,8 @@ import time
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
-from plantcheck.api.models import Readiness
+from plantcheck.api.deps import iso
+from plantcheck.api.models import Readiness, StorageOut
 from plantcheck.connectors.base import SourceHealth, now_us
 from plantcheck.service.config import Config
 from plantcheck.service.ingest import HEALTH_REPORT_S, Ingestion, down_past_grace
@@ -279,8 +280,9 @@ class Runtime:
             await self._lock_store.close()
 
     async def readiness(self) -> Readiness:
-        """Storage reachable, (when scheduling) the scheduler running or standing by, and no
-        source down past its grace period (those named)."""
+        """Storage reachable and taking this process's samples, (when scheduling) the
+        scheduler running or standing by, and no source down past its grace period (those
+        named)."""
         storage = await self.store.ping()
         scheduler = (
             not self.schedule
@@ -288,13 +290,70 @@ class Runtime:
             or (self.scheduler is not None and self.scheduler.running)
         )
         down = down_past_grace(self.cfg, self.sources(), now_us())
+        problems = []
+        if not storage:
+            problems.append("storage: the database does not answer")
+        writes, buffer = True, True
+        if self.ingestion is not None:
+            w = self.ingestion.writer
+            writes, buffer = w.stats.store_up, w.stats.buffer_up
+            if not writes:
+                problems.append(f"storage: sample commits fail ({w.stats.store_error})")
+            if not buffer:
+                problems.append(
+                    f"buffer: the durable buffer fails ({w.stats.buffer_error}); {w.held} "
+                    f"samples held in memory, {w.dropped} dropped"
+                )
+        if not scheduler:
+            problems.append("scheduler: not running")
+        if down:
+            problems.append(f"sources down past their grace period: {', '.join(down)}")
         return Readiness(
-            ready=storage and scheduler and not down,
-            storage=storage,
+            ready=storage and writes and scheduler and not down,
+            storage=storage and writes,
             scheduler=scheduler,
             sources=not down,
             sources_down=down,
             role=self.role,
+            storage_writes=writes,
+            buffer=buffer,
+            problems=problems,
+        )
+
+    def storage_health(self) -> StorageOut:
+        """This process's sample writer: database, durable buffer, memory (issue 45)."""
+        if self.ingestion is None:
+            return StorageOut(
+                ingesting=False,
+                database="up",
+                database_since=None,
+                database_error="",
+                buffer="up",
+                buffer_since=None,
+                buffer_error="",
+                buffer_path=self.cfg.storage.buffer_path,
+                samples_in_buffer=0,
+                samples_in_memory=0,
+                memory_max_samples=self.cfg.storage.memory_max_samples,
+                samples_dropped=0,
+                samples_stored=0,
+            )
+        w = self.ingestion.writer
+        st = w.stats
+        return StorageOut(
+            ingesting=True,
+            database="up" if st.store_up else "down",
+            database_since=iso(st.store_down_since_us),
+            database_error=st.store_error,
+            buffer="up" if st.buffer_up else "down",
+            buffer_since=iso(st.buffer_down_since_us),
+            buffer_error=st.buffer_error,
+            buffer_path=str(w.buffer.path),
+            samples_in_buffer=len(w.buffer),
+            samples_in_memory=w.held,
+            memory_max_samples=w.memory_max_samples,
+            samples_dropped=w.dropped,
+            samples_stored=st.stored,
         )
 
     def sources(self) -> list[SourceHealth]:
@@ -322,5 +381,6 @@ class Runtime:
             m.buffer_depth.set(w.depth)
             m.set_sources(self.ingestion.source_health())
             m.set_store(w.stats.store_up, w.stats.store_failures)
+            m.set_buffer(w.stats.buffer_up, w.held, w.dropped)
         m.sample_rate()
         return m.render()

@@ -2,17 +2,24 @@
 
 A small SQLite file (stdlib ``sqlite3``, WAL) with an autoincrement sequence, so samples leave
 in the order they arrived. At most ``max_samples`` are kept: what does not fit is dropped,
-counted (``dropped``) and reported by the writer; nothing else is ever lost.
+counted (``dropped``) and reported by the writer; nothing else is ever lost. A write that
+the disk refuses (full, read-only, I/O error) is rolled back and raised as
+``BufferUnavailableError``: the writer keeps those samples in memory and tries again (issue 45).
 """
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
 
 from plantcheck.core.samples import Sample
 from plantcheck.storage.errors import StorageError
+
+
+class BufferUnavailableError(StorageError):
+    """The buffer's disk refused a read or write (full, read-only, failing); nothing changed."""
 
 
 class DurableBuffer:
@@ -26,6 +33,7 @@ class DurableBuffer:
             self._db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False)
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=NORMAL")
+            self._db.execute("PRAGMA journal_size_limit=0")  # a full disk shows at once
             self._db.execute(
                 "CREATE TABLE IF NOT EXISTS pending (seq INTEGER PRIMARY KEY AUTOINCREMENT, "
                 "tag_id INTEGER, ts_us INTEGER, recv_us INTEGER, value REAL, status INTEGER)"
@@ -47,23 +55,31 @@ class DurableBuffer:
         keep = rows[:room]
         lost = len(rows) - len(keep)
         if keep:
-            self._db.execute("BEGIN")
-            self._db.executemany(
-                "INSERT INTO pending (tag_id, ts_us, recv_us, value, status) VALUES (?,?,?,?,?)",
-                keep,
-            )
-            self._db.execute("COMMIT")
+            try:
+                self._db.execute("BEGIN")
+                self._db.executemany(
+                    "INSERT INTO pending (tag_id, ts_us, recv_us, value, status) "
+                    "VALUES (?,?,?,?,?)",
+                    keep,
+                )
+                self._db.execute("COMMIT")
+            except sqlite3.Error as exc:
+                self._rollback()
+                raise BufferUnavailableError(f"durable buffer {self.path}: {exc}") from None
             self._size += len(keep)
         self.dropped += lost
         return lost
 
     def peek(self, n: int) -> tuple[int, list[Sample]]:
         """The oldest ``n`` samples and the sequence number of the last of them."""
-        cur = self._db.execute(
-            "SELECT seq, tag_id, ts_us, recv_us, value, status FROM pending ORDER BY seq LIMIT ?",
-            (n,),
-        )
-        rows = cur.fetchall()
+        try:
+            rows = self._db.execute(
+                "SELECT seq, tag_id, ts_us, recv_us, value, status FROM pending ORDER BY seq "
+                "LIMIT ?",
+                (n,),
+            ).fetchall()
+        except sqlite3.Error as exc:
+            raise BufferUnavailableError(f"durable buffer {self.path}: {exc}") from None
         if not rows:
             return 0, []
         return int(rows[-1][0]), [Sample(*r[1:]) for r in rows]
@@ -78,8 +94,19 @@ class DurableBuffer:
 
     def remove_through(self, seq: int) -> None:
         """Forget every sample up to ``seq`` (after they were stored)."""
-        cur = self._db.execute("DELETE FROM pending WHERE seq <= ?", (seq,))
+        try:
+            cur = self._db.execute("DELETE FROM pending WHERE seq <= ?", (seq,))
+        except sqlite3.Error as exc:
+            self._rollback()
+            raise BufferUnavailableError(f"durable buffer {self.path}: {exc}") from None
         self._size = max(0, self._size - cur.rowcount)
 
+    def _rollback(self) -> None:
+        """Leave no transaction open after a refused write (the next one starts clean)."""
+        if self._db.in_transaction:
+            with contextlib.suppress(sqlite3.Error):
+                self._db.execute("ROLLBACK")
+
     def close(self) -> None:
-        self._db.close()
+        with contextlib.suppress(sqlite3.Error):
+            self._db.close()

@@ -31,6 +31,9 @@ def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:
     cur.execute("PRAGMA synchronous=NORMAL")
     cur.execute("PRAGMA busy_timeout=10000")
     cur.execute("PRAGMA foreign_keys=ON")
+    # the WAL shrinks to nothing each time a checkpoint resets it: a disk that fills shows at
+    # the next commit, not minutes later once a WAL kept at its largest size is used up
+    cur.execute("PRAGMA journal_size_limit=0")
     cur.close()
 
 
