@@ -29,12 +29,14 @@ typecheck: venv
 	@tmp=$$(mktemp -d) && ln -s "$(CURDIR)" "$$tmp/plantcheck" && \
 	  MYPYPATH="$$tmp" $(BIN)/mypy -p plantcheck; rc=$$?; rm -rf "$$tmp"; exit $$rc
 
-# Debian packages the tests use: PostgreSQL (a throw-away cluster per test session) and
-# Chromium (the web page test, headless). Installed with apt-get when missing and root.
+# Debian packages the tests use: PostgreSQL (a throw-away cluster per test session), Chromium
+# (the web page test, headless) and libfuse3 (the read-only disk of the disk-fault tests).
+# Installed with apt-get when missing and root.
 system-deps:
 	@need=""; \
 	ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || need="$$need postgresql"; \
 	command -v chromium >/dev/null 2>&1 || need="$$need chromium"; \
+	ls /usr/lib/*/libfuse3.so.3 >/dev/null 2>&1 || need="$$need libfuse3-3"; \
 	if [ -n "$$need" ]; then \
 	  if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
 	    echo "installing Debian packages for the tests:$$need"; \

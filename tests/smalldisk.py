@@ -1,15 +1,22 @@
-"""A small real filesystem for the disk-fault tests (issue 45): a tmpfs of a few MB that the
-test fills (a filler file takes every free byte) and frees again.
+"""Real filesystems that fail for the disk-fault tests (issue 45): ``small_disk``, a tmpfs of a
+few MB that the test fills (a filler file takes every free byte) and frees again, and
+``readonly_disk``, a pass-through FUSE filesystem (``readonlyfs.py``) that the test turns
+read-only and writable again.
 
-Mounting needs root (CAP_SYS_ADMIN); ``small_disk`` skips the test with that reason where it is
-missing, so the suite stays green for a developer without it. CI runs as root.
+Mounting needs root (CAP_SYS_ADMIN), and the FUSE one ``/dev/fuse``, libfuse3 and mfusepy (the
+Makefile and the dev extra install them); each skips the test naming what is missing, so the
+suite stays green for a developer without them. CI runs as root.
 """
 
 from __future__ import annotations
 
+import ctypes.util
 import errno
+import importlib.util
 import os
 import subprocess
+import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -38,6 +45,9 @@ class SmallDisk:
 
     def free(self) -> None:
         self.filler.unlink(missing_ok=True)
+
+    fault = fill
+    recover = free
 
     def free_bytes(self) -> int:
         st = os.statvfs(self.path)
@@ -70,3 +80,65 @@ def small_disk(path: Path, size_mb: int = 16) -> Iterator[SmallDisk]:
         yield SmallDisk(path)
     finally:
         subprocess.run(["umount", "-l", str(path)], capture_output=True, check=False)
+
+
+class ReadOnlyDisk:
+    """A mounted ``readonlyfs``: ``fault()`` turns it read-only, ``recover()`` writable."""
+
+    def __init__(self, path: Path, switch: Path) -> None:
+        self.path = path
+        self.switch = switch
+
+    def fault(self) -> None:
+        self.switch.touch()
+
+    def recover(self) -> None:
+        self.switch.unlink(missing_ok=True)
+
+
+def fuse_reason() -> str:
+    """Why ``readonly_disk`` cannot run here ("" when it can)."""
+    if os.geteuid() != 0:
+        return "the read-only disk test mounts a FUSE filesystem, which needs root"
+    if not os.path.exists("/dev/fuse"):
+        return "the read-only disk test needs /dev/fuse"
+    if ctypes.util.find_library("fuse3") is None:
+        return "the read-only disk test needs libfuse3 (Debian package libfuse3-3)"
+    if importlib.util.find_spec("mfusepy") is None:
+        return "the read-only disk test needs mfusepy (pip install -e '.[dev]')"
+    return ""
+
+
+@contextmanager
+def readonly_disk(path: Path, scratch: Path) -> Iterator[ReadOnlyDisk]:
+    """A FUSE pass-through of ``scratch/ro-source`` mounted at ``path``, read-only while
+    ``scratch/ro-switch`` exists (the test is skipped where it cannot be mounted)."""
+    reason = fuse_reason()
+    if reason:
+        pytest.skip(reason)
+    source, switch = scratch / "ro-source", scratch / "ro-switch"
+    source.mkdir(parents=True, exist_ok=True)
+    path.mkdir(parents=True, exist_ok=True)
+    proc = subprocess.Popen(
+        [sys.executable, str(Path(__file__).with_name("readonlyfs.py")), str(source), str(path),
+         str(switch)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )  # fmt: skip
+    deadline = time.monotonic() + 15.0
+    while not os.path.ismount(path):
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+            pytest.skip(f"the read-only disk test could not mount its FUSE filesystem: {err}")
+        time.sleep(0.05)
+    try:
+        yield ReadOnlyDisk(path, switch)
+    finally:
+        switch.unlink(missing_ok=True)
+        subprocess.run(["umount", "-l", str(path)], capture_output=True, check=False)
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()

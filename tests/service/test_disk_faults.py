@@ -1,13 +1,15 @@
 """Disk faults with real processes (issue 45): ``plantcheck simulate`` serves Modbus TCP and
 OPC UA, ``plantcheck run`` collects one loop from each into SQLite on a small real filesystem
 (``smalldisk``: a tmpfs, which needs root; skipped with that reason without it), and the test
-fills that filesystem, then frees it.
+fills that filesystem, then frees it; or on a FUSE pass-through (``readonlyfs``) that the test
+turns read-only, then writable again.
 
-Two layouts: the database and the durable buffer on the one disk that fills (samples wait in
-memory), and the database's disk full with the buffer on another (the buffer takes them). For
-each: ``/readyz`` answers 503 naming storage within 5 s, ``GET /api/v1/storage`` says where the
-samples are, writing resumes within 10 s of the disk being freed, and the stored history of
-both protocols has no hole that a gap marker does not cover.
+Three faults: the database and the durable buffer on the one disk that fills (samples wait in
+memory), the same disk turned read-only, and the database's disk full with the buffer on
+another (the buffer takes them). For each: ``/readyz`` answers 503 naming storage within 5 s,
+``GET /api/v1/storage`` says where the samples are, writing resumes within 10 s of the disk
+recovering, and the stored history of both protocols has no hole that a gap marker does not
+cover.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any
 
 import httpx
 import pytest
-from smalldisk import small_disk
+from smalldisk import readonly_disk, small_disk
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from soak import LOOPS, Drill, drill
@@ -43,17 +45,22 @@ def _poll(d: Drill, until: Any, timeout_s: float) -> tuple[float, dict[str, Any]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("layout", ["one disk", "buffer elsewhere"])
-def test_a_full_disk_is_reported_and_loses_nothing(tmp_path: Path, layout: str) -> None:
-    with small_disk(tmp_path / "disk", size_mb=24) as disk:
-        buffer_dir = disk.path if layout == "one disk" else tmp_path
+@pytest.mark.parametrize("layout", ["one disk", "one disk read-only", "buffer elsewhere"])
+def test_a_failing_disk_is_reported_and_loses_nothing(tmp_path: Path, layout: str) -> None:
+    disks = (
+        readonly_disk(tmp_path / "disk", tmp_path)
+        if layout.endswith("read-only")
+        else small_disk(tmp_path / "disk", size_mb=24)
+    )
+    with disks as disk:
+        buffer_dir = disk.path if layout.startswith("one disk") else tmp_path
         with drill(tmp_path, db_dir=disk.path, buffer_dir=buffer_dir) as d:
             _poll(d, lambda r, code, s: code == 200 and s["samples_stored"] > 20, 60)
-            disk.fill()
+            disk.fault()
             took, seen = _poll(d, lambda r, code, s: code == 503 and not r["storage"], 10)
             assert took <= 5.0, seen
             assert any(p.startswith("storage:") for p in seen["readyz"]["problems"]), seen
-            if layout == "one disk":
+            if layout.startswith("one disk"):
                 took, seen = _poll(
                     d, lambda r, c, s: s["buffer"] == "down" and s["samples_in_memory"] > 0, 10
                 )
@@ -61,7 +68,7 @@ def test_a_full_disk_is_reported_and_loses_nothing(tmp_path: Path, layout: str) 
             else:
                 _poll(d, lambda r, c, s: s["samples_in_buffer"] > 0, 10)
             time.sleep(6.0)  # the fault lasts a while: samples keep arriving
-            disk.free()
+            disk.recover()
             took, seen = _poll(
                 d,
                 lambda r, c, s: (
