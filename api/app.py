@@ -19,6 +19,7 @@ from fastapi.staticfiles import StaticFiles
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
 from plantcheck.api.deps import AccessSettings
+from plantcheck.api.gate import HeavyReadGate
 from plantcheck.api.loop_table import LoopTable
 from plantcheck.storage.errors import store_outage_errors
 
@@ -29,6 +30,9 @@ disturbances). Times are ISO 8601 UTC. Lists are JSON arrays paginated with `lim
 (total in `X-Total-Count`, next page in `Link`). Errors are `{"detail": ...}`. When the
 configuration sets `api.require_key_for_reads`, every request needs the `X-API-Key` header;
 requests that change anything always do."""
+
+HEAVY_READS = 2
+"""Sample pages served at once (``gate.HeavyReadGate``); one takes ~50 ms."""
 
 
 def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
@@ -43,6 +47,7 @@ def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
     app.state.api_config = api_config
     app.state.started = time.time()
     app.state.loop_table = LoopTable()
+    app.add_middleware(HeavyReadGate, at_once=HEAVY_READS)
     app.include_router(routes.router)
     app.include_router(reports.router)
     app.include_router(health.router)

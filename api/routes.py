@@ -6,7 +6,9 @@ Lists are JSON arrays; pagination is ``limit``/``offset`` with the total in the
 
 from __future__ import annotations
 
+import asyncio
 import json
+from collections.abc import Sequence
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, HTTPException, Path, Query, Request, Response
@@ -16,6 +18,7 @@ from plantcheck.api.deps import (
     TimeRange,
     get_loop,
     iso,
+    iso_many,
     iso_required,
     require_read_key,
     require_write_key,
@@ -40,13 +43,14 @@ from plantcheck.storage.results import (
     loop_statuses,
 )
 from plantcheck.storage.rollups import read_hours
+from plantcheck.storage.store import LoopRow, Store
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
 LoopId = Annotated[
     str, Path(description="Loop id as configured, e.g. FIC101.", pattern=NAME_PATTERN)
 ]
-Offset = Annotated[int, Query(ge=0, le=10_000_000, description="Items to skip.")]
+Offset = Annotated[int, Query(ge=0, le=100_000, description="Items to skip (at most 100,000).")]
 Responses = dict[int | str, dict[str, Any]]
 NOT_FOUND: Responses = {404: {"description": "Unknown loop"}}
 UNAUTHORIZED: Responses = {401: {"description": "Missing or wrong X-API-Key header"}}
@@ -154,6 +158,71 @@ async def list_diagnoses(
     ]
 
 
+MAX_SAMPLES_PAGE = 10_000
+"""Most samples one request returns."""
+MAX_SAMPLES_SKIP = 10_000
+"""Most samples one request may skip (``offset``): later pages follow the ``after`` cursor of
+the ``Link`` header, which costs the same on any page. With the page, this bounds the rows one
+request reads to (skip + page) per signal (``benchmarks/api_worst_request.py``)."""
+
+
+def parse_cursor(after: str | None) -> tuple[int, int] | None:
+    """``TIME_US:TAG`` from a ``Link`` header (the pattern is checked by the query)."""
+    if after is None:
+        return None
+    t, tag = after.split(":")
+    return int(t), int(tag)
+
+
+def _sample_items(
+    rows: Sequence[tuple[str, int, int, float | None, int]],
+) -> list[dict[str, Any]]:
+    stamps = iso_many([r[1] for r in rows] + [r[2] for r in rows])
+    n = len(rows)
+    return [
+        {"time": stamps[k], "signal": sig, "value": value, "status": status,
+         "received_at": stamps[n + k], "count": None, "min": None, "max": None}
+        for k, (sig, _, _, value, status) in enumerate(rows)
+    ]  # fmt: skip
+
+
+async def _sample_page(
+    store: Store,
+    row: LoopRow,
+    times: TimeRange,
+    signal: Sequence[str] | None,
+    limit: int,
+    offset: int,
+    cursor: tuple[int, int] | None,
+    resolution: str,
+) -> tuple[list[dict[str, Any]], tuple[int, int] | None, bool]:
+    """One page of samples as JSON-ready rows, the last row's cursor, whether more follow."""
+    start, end = times.start_us, times.end_us
+    items: list[dict[str, Any]]
+    if resolution == "hour":
+        hours = await read_hours(store, row, start, end, limit + 1, signal, cursor, offset)
+        page = hours[:limit]
+        items = [
+            {"time": t, "signal": h.signal, "value": h.mean, "status": 0,
+             "received_at": None, "count": h.n, "min": h.low, "max": h.high}
+            for t, h in zip(iso_many([h.hour_us for h in page]), page, strict=True)
+        ]  # fmt: skip
+        last = (page[-1].hour_us, row.tags[page[-1].signal]) if page else None
+        more = len(hours) > limit
+    else:
+        if start is None and end is None:
+            newest = await store.latest_sample_us(row)
+            if newest is not None:
+                start, end = newest - 3_600_000_000, newest + 1
+        rows = await store.read_samples(row, start, end, limit + 1, signal, cursor, offset)
+        page_rows = rows[:limit]
+        # the rows become JSON off the event loop: /healthz and the page stay quick meanwhile
+        items = await asyncio.to_thread(_sample_items, page_rows)
+        last = (page_rows[-1][1], row.tags[page_rows[-1][0]]) if page_rows else None
+        more = len(rows) > limit
+    return items, last, more
+
+
 @router.get(
     "/loops/{loop_id}/samples",
     response_model=list[SampleOut],
@@ -162,15 +231,31 @@ async def list_diagnoses(
 async def list_samples(
     backend: Backend,
     request: Request,
-    response: Response,
     loop_id: LoopId,
     times: Annotated[TimeRange, Depends()],
     signal: Annotated[
         list[Literal["sp", "pv", "op", "mv", "mode"]] | None,
         Query(description="Only these signals (repeat the parameter for several)."),
     ] = None,
-    limit: Annotated[int, Query(ge=1, le=100_000, description="Most samples returned.")] = 10_000,
-    offset: Offset = 0,
+    limit: Annotated[
+        int, Query(ge=1, le=MAX_SAMPLES_PAGE, description="Most samples returned.")
+    ] = MAX_SAMPLES_PAGE,
+    offset: Annotated[
+        int,
+        Query(
+            ge=0,
+            le=MAX_SAMPLES_SKIP,
+            description="Samples to skip (at most 10,000: for later pages follow the Link "
+            "header, which carries the 'after' cursor).",
+        ),
+    ] = 0,
+    after: Annotated[
+        str | None,
+        Query(
+            pattern=r"^\d{1,19}:\d{1,10}$",
+            description="Cursor from the Link header: continue after this position.",
+        ),
+    ] = None,
     resolution: Annotated[
         Literal["raw", "hour"],
         Query(
@@ -178,45 +263,26 @@ async def list_samples(
             "max of the Good values), kept for years after the samples are deleted."
         ),
     ] = "raw",
-) -> list[SampleOut]:
+) -> Response:
     """Stored samples in [from, to), oldest first; without ``from`` and ``to``, the last hour
     up to the newest stored sample (hourly: everything kept). A ``Link`` header points to the
-    next page, if any."""
+    next page, if any. One request reads at most (offset + limit) rows per signal, whatever
+    the span."""
     row = await get_loop(backend, loop_id)
-    store = backend.store
-    start, end = times.start_us, times.end_us
-    if resolution == "hour":
-        hours = await read_hours(store, row, start, end, limit + offset + 1, signal)
-        paginate(request, response, None, limit, offset, more=len(hours) > limit + offset)
-        return [
-            SampleOut(
-                time=iso_required(h.hour_us),
-                signal=h.signal,
-                value=h.mean,
-                status=0,
-                received_at=None,
-                count=h.n,
-                min=h.low,
-                max=h.high,
-            )
-            for h in hours[offset : offset + limit]
-        ]
-    if start is None and end is None:
-        newest = await store.latest_sample_us(row)
-        if newest is not None:
-            start, end = newest - 3_600_000_000, newest + 1
-    rows = await store.read_samples(row, start, end, limit + offset + 1, signal)
-    paginate(request, response, None, limit, offset, more=len(rows) > limit + offset)
-    return [
-        SampleOut(
-            time=iso_required(ts),
-            signal=sig,
-            value=value,
-            status=status,
-            received_at=iso_required(recv),
+    cursor = parse_cursor(after)
+    items, last, more = await _sample_page(
+        backend.store, row, times, signal, limit, offset, cursor, resolution
+    )
+    body = await asyncio.to_thread(json.dumps, items, separators=(",", ":"))
+    response = Response(body, media_type="application/json")
+    if more and last is not None:
+        # the next page by keyset, so that it costs what the first did; a relative link (RFC
+        # 8288 allows it), never one built from the Host header
+        nxt = request.url.remove_query_params("offset").include_query_params(
+            after=f"{last[0]}:{last[1]}", limit=limit
         )
-        for sig, ts, recv, value, status in rows[offset : offset + limit]
-    ]
+        response.headers["Link"] = f'<{nxt.path}?{nxt.query}>; rel="next"'
+    return response
 
 
 @router.get("/actions", response_model=list[ActionOut], responses=UNAUTHORIZED)

@@ -170,6 +170,41 @@ class Drill:
             command = {"stall": "stall 8 both", "drop": "drop both", "restart": "restart 5 both"}
             asyncio.run(send_admin("127.0.0.1", self.admin, command[kind]))
 
+    def wait_back(self, timeout_s: float = 30.0) -> dict[str, int]:
+        """After a restart of both servers: per protocol, when its port listened again (µs
+        since the epoch), having refused first."""
+        ports = {"modbus": self.modbus, "opcua": self.opcua}
+        deadline = time.monotonic() + timeout_s
+        down: set[str] = set()
+        back: dict[str, int] = {}
+        while len(back) < len(ports) and time.monotonic() < deadline:
+            for protocol, port in ports.items():
+                if protocol in back:
+                    continue
+                with socket.socket() as s:
+                    s.settimeout(0.5)
+                    up = s.connect_ex(("127.0.0.1", port)) == 0
+                if up and protocol in down:
+                    back[protocol] = time.time_ns() // 1000
+                elif not up:
+                    down.add(protocol)
+            time.sleep(0.02)
+        if len(back) < len(ports):
+            raise RuntimeError(f"servers not down and back in {timeout_s:g} s: {back}")
+        return back
+
+    def return_lag_s(self, protocol: str, back_us: int) -> float | None:
+        """Seconds from a server's return (``back_us``) to the first sample received from it
+        after that, or None when none came."""
+        with sqlite3.connect(self.db) as con:
+            row = con.execute(
+                "SELECT min(s.recv_us) FROM samples s JOIN tags t ON s.tag_id = t.id "
+                "JOIN loops l ON t.loop_id = l.id WHERE l.name = ? AND s.recv_us >= ? "
+                "AND s.value IS NOT NULL",
+                (LOOPS[protocol], back_us),
+            ).fetchone()
+        return None if row[0] is None else (row[0] - back_us) / 1e6
+
     def memory_kb(self) -> int:
         return rss_kb(self.service.pid) if self.service is not None else 0
 

@@ -6,8 +6,10 @@ A connector module (one per protocol) subclasses ``DeviceConnector`` and impleme
 polls or waits for subscriptions, and on a failure it marks a gap (a Bad
 ``BAD_NO_COMMUNICATION`` sample with no value for every tag), closes, and reconnects with
 exponential backoff and jitter; the device is back (and the back-off reset) at its first data,
-not at connect, so one that accepts connections but does not answer backs off further. A
-failing device never slows the others.
+not at connect, so one that accepts connections but does not answer backs off further. While
+it backs off, the device's TCP endpoint is probed every ``PROBE_S``: a server that was not
+listening and listens again is tried at once, not when the back-off clock says (issue 45: a
+server back after 5 s was read again 9-13 s later). A failing device never slows the others.
 
 Held tags (a polled source's SP and mode, which keep their value between samples) are passed on
 only when their value or status changes, again after every gap marker, and at least every
@@ -40,6 +42,22 @@ log = logging.getLogger("plantcheck.connectors")
 
 HELD_REFRESH_S = 600.0
 """Longest time (s, source time) between two passed-on samples of an unchanged held tag."""
+
+
+PROBE_S = 0.5
+"""How often a backing-off device's endpoint is probed for a server that listens again (s)."""
+
+
+async def listening(host: str, port: int, timeout_s: float = 1.0) -> bool:
+    """A TCP connection to ``host:port`` is accepted (closed again at once)."""
+    try:
+        _, writer = await asyncio.wait_for(asyncio.open_connection(host, port), timeout_s)
+    except (OSError, TimeoutError):
+        return False
+    writer.close()
+    with contextlib.suppress(OSError):
+        await writer.wait_closed()
+    return True
 
 
 def now_us() -> int:
@@ -103,6 +121,10 @@ class DeviceConnector(ABC):
     @abstractmethod
     async def close(self) -> None:
         """Close the connection (never raises)."""
+
+    def endpoint(self) -> tuple[str, int] | None:
+        """The server's TCP host and port, probed while backing off (None: not probed)."""
+        return None
 
     def emit(self, rows: Sequence[Sample]) -> None:
         if self.held:
@@ -206,8 +228,25 @@ class DeviceConnector(ABC):
                 break
             wait = self._delay * random.uniform(0.8, 1.2)
             self._delay = min(self._delay * 2, self.backoff_max_s)
+            await self._back_off(wait)
+
+    async def _back_off(self, wait_s: float) -> None:
+        """Wait ``wait_s`` before the next try, or less: until stopped, or until the endpoint,
+        seen not listening during this wait, listens again (the server is back)."""
+        end = time.monotonic() + wait_s
+        addr = self.endpoint()
+        was_down = False
+        while not self._stop.is_set():
+            left = end - time.monotonic()
+            if left <= 0:
+                return
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._stop.wait(), wait)
+                await asyncio.wait_for(self._stop.wait(), min(left, PROBE_S))
+            if addr is not None and not self._stop.is_set():
+                up = await listening(*addr)
+                if up and was_down:
+                    return
+                was_down = was_down or not up
 
     def stop(self) -> None:
         self._stop.set()

@@ -132,6 +132,9 @@ class ModbusConnector(DeviceConnector):
         self.poll_interval_s, self.timeout_s = poll_interval_s, timeout_s
         self.client: AsyncModbusTcpClient | None = None
 
+    def endpoint(self) -> tuple[str, int]:
+        return self.host, self.port
+
     async def connect(self) -> None:
         self.client = AsyncModbusTcpClient(
             self.host, port=self.port, timeout=self.timeout_s, retries=0, reconnect_delay=0

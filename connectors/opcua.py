@@ -24,6 +24,7 @@ import math
 from collections.abc import Sequence
 from datetime import datetime
 from typing import Any
+from urllib.parse import urlsplit
 
 from asyncua import Client, ua
 
@@ -105,6 +106,14 @@ class OpcUaConnector(DeviceConnector):
         self._last_data_us = 0
         self._last_ts: dict[int, int] = {}
         """Per tag, the newest source time (µs) received."""
+
+    def endpoint(self) -> tuple[str, int] | None:
+        """The endpoint URL's host and port (4840, the OPC UA default, when it names none)."""
+        try:
+            u = urlsplit(self.url)
+            return (u.hostname, u.port or 4840) if u.hostname else None
+        except ValueError:
+            return None
 
     async def _lost(self, exc: Exception) -> None:
         self._lost_exc = exc

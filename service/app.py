@@ -7,6 +7,7 @@ database); stopping it stops them in reverse order, flushing every received samp
 
 from __future__ import annotations
 
+import gc
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -26,6 +27,10 @@ def build_app(
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         runtime = await Runtime.start(cfg, config_hint, connect=connect, schedule=schedule)
         app.state.backend = runtime
+        # what start-up made (modules, the configuration, the scheduler) lives as long as the
+        # process: out of the collector's sight, a full collection under load takes a few ms
+        # instead of ~100 (the pause /healthz would show)
+        gc.freeze()
         try:
             yield
         finally:

@@ -21,12 +21,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from sqlalchemy import and_, bindparam, delete, select, text
 
 from plantcheck.core.status_codes import BAD
 from plantcheck.storage.schema import sample_hours, samples
 from plantcheck.storage.store import (
+    Cursor,
     LoopRow,
     Store,
     delete_per_tag,
@@ -134,20 +136,27 @@ async def read_hours(
     end_us: int | None = None,
     limit: int | None = None,
     signals: Sequence[str] | None = None,
+    after: Cursor | None = None,
+    skip: int = 0,
 ) -> list[HourRow]:
-    """The loop's hourly roll-ups starting in [start, end), oldest first."""
+    """The loop's hourly roll-ups starting in [start, end), oldest first (ties by tag id);
+    with ``limit``, one bounded page after the keyset ``after`` = (hour_us, tag id)."""
     tag_sig, cond = signal_range(
         loop, signals, sample_hours.c.tag_id, sample_hours.c.hour_us, start_us, end_us
     )
     if not tag_sig:
         return []
-    q = (
-        select(sample_hours)
-        .where(and_(*cond))
-        .order_by(sample_hours.c.hour_us, sample_hours.c.tag_id)
-    )
-    if limit is not None:
-        q = q.limit(limit)
-    async with store.engine.connect() as conn:
-        rows = (await conn.execute(q)).all()
-    return [HourRow(tag_sig[r.tag_id], r.hour_us, r.n, r.mean, r.low, r.high) for r in rows]
+    if limit is None:
+        q = (
+            select(sample_hours)
+            .where(and_(*cond))
+            .order_by(sample_hours.c.hour_us, sample_hours.c.tag_id)
+        )
+        async with store.engine.connect() as conn:
+            rows: Sequence[Any] = (await conn.execute(q)).all()
+    else:
+        rows = await store.page(
+            "sample_hours", "hour_us", "n, mean, low, high", list(tag_sig), start_us, end_us,
+            limit, after, skip,
+        )  # fmt: skip
+    return [HourRow(tag_sig[r[0]], r[1], r[2], r[3], r[4], r[5]) for r in rows]

@@ -4,7 +4,8 @@
 each. The servers stall (8 s), drop every connection, restart (down 5 s); the simulator and then
 the service are killed with SIGKILL and started again. Afterwards each protocol's stored PV is
 accounted (``storage.accounting``): no hole between two ordinary samples (0 samples lost
-outside outages) and a gap marker for the outages. A PostgreSQL outage is
+outside outages) and a gap marker for the outages; after the restart, each protocol's first
+sample comes at most 3 s after its server listens again. A PostgreSQL outage is
 ``test_ingest.test_postgresql_outage_loses_no_sample``; ``benchmarks/soak.py`` runs this drill
 for as long as asked.
 """
@@ -28,9 +29,16 @@ from soak import FAULTS, LOOPS, drill
 def test_every_fault_is_marked_and_nothing_is_lost_outside_them(tmp_path: Path) -> None:
     with drill(tmp_path) as d:
         time.sleep(6.0)
+        back: dict[str, int] = {}
         for kind in FAULTS:
             d.fault(kind)
+            if kind == "restart":  # both servers down 5 s: when do they listen again?
+                back = d.wait_back()
             time.sleep(10.0)
+            if kind == "restart":
+                lags = {p: d.return_lag_s(p, t) for p, t in back.items()}
+                print(f"first sample after the servers listen again: {lags} s")
+                assert all(lag is not None and lag <= 3.0 for lag in lags.values()), lags
         # data flows again after the last fault, on both protocols
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline:

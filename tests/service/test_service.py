@@ -97,6 +97,7 @@ def test_probes_and_metrics(service: Service) -> None:
     assert ready == {
         "ready": True, "storage": True, "scheduler": True, "sources": True, "sources_down": [],
         "role": "single",  # SQLite: one process does everything
+        "storage_writes": True, "buffer": True, "problems": [],
     }  # fmt: skip
     text = httpx.get(f"{service.url}/metrics").text
     for name in (
