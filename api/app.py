@@ -19,7 +19,7 @@ from fastapi.staticfiles import StaticFiles
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
 from plantcheck.api.deps import AccessSettings
-from plantcheck.api.gate import HeavyReadGate
+from plantcheck.api.gate import HeavyReadGate, ReadKeyGate
 from plantcheck.api.loop_table import LoopTable
 from plantcheck.storage.errors import store_outage_errors
 
@@ -48,6 +48,7 @@ def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
     app.state.started = time.time()
     app.state.loop_table = LoopTable()
     app.add_middleware(HeavyReadGate, at_once=HEAVY_READS)
+    app.add_middleware(ReadKeyGate, settings=api_config)  # the outermost: refuses first
     app.include_router(routes.router)
     app.include_router(reports.router)
     app.include_router(health.router)

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import secrets
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from typing import Annotated, Protocol
+from typing import Annotated, Literal, Protocol
 
 import numpy as np
 from fastapi import Depends, Header, HTTPException, Query, Request
 
+from plantcheck.api.gate import key_matches
 from plantcheck.api.models import Readiness, StorageOut
 from plantcheck.core.source_health import SourceHealth
 from plantcheck.storage.store import LoopRow, Store
@@ -24,6 +24,8 @@ class AccessSettings(Protocol):
     def api_key(self) -> str: ...
     @property
     def require_key_for_reads(self) -> bool: ...
+    @property
+    def metrics_access(self) -> Literal["open", "key", "off"]: ...
 
 
 class ServiceBackend(Protocol):
@@ -65,19 +67,12 @@ def get_api_config(request: Request) -> AccessSettings:
 Backend = Annotated[ServiceBackend, Depends(get_backend)]
 
 
-def _key_matches(given: str | None, expected: str) -> bool:
-    """Constant-time comparison; an empty key (given or configured) never matches."""
-    if not given or not expected:
-        return False
-    return secrets.compare_digest(given.encode(), expected.encode())
-
-
 def require_read_key(
     cfg: Annotated[AccessSettings, Depends(get_api_config)],
     x_api_key: Annotated[str | None, Header(include_in_schema=False)] = None,
 ) -> None:
     """Reads need the key only when ``api.require_key_for_reads`` is set."""
-    if cfg.require_key_for_reads and not _key_matches(x_api_key, cfg.api_key):
+    if cfg.require_key_for_reads and not key_matches(x_api_key, cfg.api_key):
         raise HTTPException(
             401,
             f"missing or wrong {API_KEY_HEADER} header (reads require the API key)",
@@ -95,7 +90,7 @@ def require_write_key(
         raise HTTPException(
             403, "no API key is configured: set [api] api_key to enable this endpoint"
         )
-    if not _key_matches(x_api_key, cfg.api_key):
+    if not key_matches(x_api_key, cfg.api_key):
         raise HTTPException(
             401,
             f"missing or wrong {API_KEY_HEADER} header",

@@ -9,6 +9,7 @@ the third ``[[loop]]`` table, or its inline table).
 
 from __future__ import annotations
 
+import json
 import re
 import tomllib
 from pathlib import Path
@@ -90,9 +91,21 @@ def locate(text: str, loc: tuple[int | str, ...]) -> int | None:
     return start + 1
 
 
+HINTS = {
+    "int_type": "a whole number, written without quotes or decimal point",
+    "float_type": "a number, written without quotes",
+    "bool_type": "true or false, written without quotes",
+    "string_type": "text in quotes",
+}
+"""What to write instead, by the error's kind: TOML values are taken as they are typed, never
+converted (``port = "18520"`` is refused, not read as 18520)."""
+
+
 def _expected(err: dict[str, object]) -> str:
     msg = str(err.get("msg", "invalid value"))
     kind = str(err.get("type", ""))
+    if kind in HINTS:
+        msg = f"{msg}: write {HINTS[kind]}"
     if kind == "extra_forbidden":
         return "unknown key (check its spelling against the documented keys)"
     if kind == "missing":
@@ -104,7 +117,16 @@ def _expected(err: dict[str, object]) -> str:
 
 
 def parse_toml(text: str, model: type[M], path: str = "<config>") -> M:
-    """Validate TOML ``text`` as ``model``; raise ``ConfigError`` on the first problem."""
+    """Validate TOML ``text`` as ``model``; raise ``ConfigError`` on the first problem.
+
+    Strictly, as the JSON the file stands for: no value changes type on the way (a quoted
+    number, a float where a whole number belongs, 1 for true are errors), while a whole
+    number where any number belongs and an enum's text are what they say."""
+    if text.startswith("\ufeff"):
+        raise ConfigError(
+            path, 1, "file", "starts with a UTF-8 byte-order mark (BOM): save it as UTF-8 "
+            "without BOM (in Notepad: Save as, Encoding 'UTF-8')"
+        )  # fmt: skip
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -112,8 +134,10 @@ def parse_toml(text: str, model: type[M], path: str = "<config>") -> M:
         raise ConfigError(
             path, int(m.group(1)) if m else None, "syntax", f"not valid TOML ({exc})"
         ) from None
+    # TOML dates and times become text, which no numeric setting takes
+    payload = json.dumps(data, default=str)
     try:
-        return model.model_validate(data)
+        return model.model_validate_json(payload, strict=True)
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = tuple(err["loc"])

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from plantcheck.service.cli_common import fail
-from plantcheck.service.cli_store import ConfigOpt, _config
+from plantcheck.service.cli_store import ConfigOpt, _config, migrate_or_fail
 from plantcheck.service.logs import configure_for_command
 
 if TYPE_CHECKING:
@@ -137,13 +137,17 @@ def run_cmd(
     window, serve the REST API and the web page (one process; one per database)."""
     configure_for_command("info")
     cfg = _config(config)
+    if not cfg.loop:
+        typer.echo(
+            "plantcheck: warning: no [[loop]] is configured: nothing will be collected or "
+            "diagnosed (README, Configuration)",
+            err=True,
+        )
     api = cfg.api.model_copy(update={k: v for k, v in (("host", host), ("port", port)) if v})
     cfg = cfg.model_copy(update={"api": api})
     hint = f" --config {config}" if config else ""
     if migrate:
-        from plantcheck.storage.database import upgrade
-
-        upgrade(cfg.storage.url)
+        migrate_or_fail(cfg.storage.url)
     asyncio.run(_check_store(cfg, hint))
     _check_port(cfg.api.host, cfg.api.port, "set [api] port in the configuration or use --port")
     _serve(cfg, hint, None, None)

@@ -39,17 +39,52 @@ def _config(path: Path | None) -> Config:
         raise fail(f"invalid configuration: {exc}") from None
 
 
+def _root_reason(exc: BaseException) -> str:
+    """The innermost cause of a failed migration, in one line (the driver's own words)."""
+    seen = exc
+    while True:
+        nxt = getattr(seen, "orig", None) or seen.__cause__ or seen.__context__
+        if nxt is None or nxt is seen:
+            break
+        seen = nxt
+    text = getattr(seen, "strerror", None) or str(seen) or type(seen).__name__
+    return str(text).splitlines()[0]
+
+
+def migrate_or_fail(url: str) -> str:
+    """Create or migrate the database at ``url`` (``db upgrade``, ``run --migrate``): its
+    revision, or exit 2 with one line naming the database (password hidden) and the fix."""
+    from sqlalchemy.engine import make_url
+
+    from plantcheck.storage.database import upgrade
+
+    parsed = make_url(url)
+    where = parsed.render_as_string(hide_password=True)
+    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
+        folder = Path(parsed.database).resolve().parent
+        if not folder.is_dir():
+            raise fail(
+                f"cannot create the database {where}: the folder {folder} does not exist; "
+                "create it or point storage.url at an existing one"
+            )
+    try:
+        return upgrade(url)
+    except Exception as exc:
+        raise fail(
+            f"cannot migrate the database {where}: {_root_reason(exc)}; check storage.url "
+            "(host, port, user, database) and that the database server runs"
+        ) from None
+
+
 @db_app.command("upgrade")
 def db_upgrade(config: ConfigOpt = None) -> None:
     """Create or migrate the database named in the configuration to the newest schema."""
-    from plantcheck.storage.database import upgrade
+    from sqlalchemy.engine import make_url
 
     cfg = _config(config)
-    try:
-        rev = upgrade(cfg.storage.url)
-    except Exception as exc:
-        raise fail(f"cannot migrate {cfg.storage.url}: {exc}") from None
-    typer.echo(f"database at schema revision {rev}: {cfg.storage.url}")
+    rev = migrate_or_fail(cfg.storage.url)
+    where = make_url(cfg.storage.url).render_as_string(hide_password=True)
+    typer.echo(f"database at schema revision {rev}: {where}")
 
 
 def import_cmd(

@@ -40,6 +40,12 @@ OPCUA_TAG = re.compile(
 )
 
 
+MAX_WINDOW_S = 30 * 86400.0
+"""Longest diagnosis window (s): a month of samples is far more than any method reads."""
+MAX_PERIOD_S = 86400.0
+"""Longest time between two diagnoses of a loop (s): a day."""
+
+
 class _Strict(BaseModel):
     # inf and nan are valid TOML floats but never a valid setting
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -89,10 +95,10 @@ class StorageConfig(_Strict):
     url: str = "sqlite+aiosqlite:///plantcheck.db"
     """``sqlite+aiosqlite:///FILE`` (embedded default) or ``postgresql+asyncpg://USER@HOST/DB``."""
     commit_interval_s: float = Field(1.0, gt=0, le=60)
-    retention_days: float = Field(30.0, gt=0)
+    retention_days: float = Field(30.0, ge=1, le=36500)
     """Samples older than this are deleted every hour, except each tag's newest one (the value
     a constant set point or mode reported once by OPC UA still holds)."""
-    rollup_retention_days: float = Field(3650.0, gt=0)
+    rollup_retention_days: float = Field(3650.0, ge=1, le=36500)
     """Hourly roll-ups of every signal (count, mean, lowest, highest: the long trends, read
     with ``GET /api/v1/loops/{id}/samples?resolution=hour``) are kept this long."""
     buffer_path: str = "plantcheck-buffer.db"
@@ -126,6 +132,12 @@ class ApiConfig(_Strict):
     api_key_file: str = ""
     """File whose first line is the API key (e.g. a systemd credential)."""
     require_key_for_reads: bool = False
+    """Every request needs the key (routes, OpenAPI document, /docs, /static, the page), but
+    the probes ``/healthz`` and ``/readyz``."""
+    metrics: Literal["auto", "open", "key", "off"] = "auto"
+    """``/metrics`` (its labels name every loop and its state): ``open``, ``key`` (the API
+    key), ``off``; ``auto`` is open on a loopback ``host`` and, on an address other machines
+    reach, ``key`` when a key is set, else ``off``."""
     allow_unauthenticated: bool = False
     """Serve reads without a key on an address other machines can reach (``host`` not
     loopback); refused unless written here, so an open service is a decision."""
@@ -133,12 +145,20 @@ class ApiConfig(_Strict):
     @model_validator(mode="after")
     def _consistent(self) -> ApiConfig:
         key = read_secret("[api] api_key", self.api_key, self.api_key_env, self.api_key_file)
+        if key is not None and key != key.strip():
+            # HTTP strips a header value's ends: such a key could never match
+            raise ValueError(
+                "api_key is blank or starts or ends with white space, which no X-API-Key "
+                "header can carry: use letters, digits and punctuation"
+            )
         self.api_key = key or ""
         if self.require_key_for_reads and not self.api_key:
             raise ValueError(
                 "require_key_for_reads = true needs api_key: set [api] api_key (or drop "
                 "require_key_for_reads)"
             )
+        if self.metrics == "key" and not self.api_key:
+            raise ValueError("metrics = 'key' needs api_key: set [api] api_key, or metrics = 'off'")
         if not is_loopback(self.host) and not self.api_key and not self.allow_unauthenticated:
             raise ValueError(
                 f"host {self.host!r} is reachable from other machines and no api_key is set: "
@@ -146,17 +166,26 @@ class ApiConfig(_Strict):
             )
         return self
 
+    @property
+    def metrics_access(self) -> Literal["open", "key", "off"]:
+        """How ``/metrics`` answers (``metrics`` with ``auto`` resolved)."""
+        if self.metrics != "auto":
+            return self.metrics
+        if is_loopback(self.host):
+            return "open"
+        return "key" if self.api_key else "off"
+
 
 class SchedulerConfig(_Strict):
     """Defaults of the rolling-window diagnosis (per loop overridable)."""
 
-    window_s: float = Field(7200.0, ge=60)
-    period_s: float = Field(600.0, ge=1)
+    window_s: float = Field(7200.0, ge=60, le=MAX_WINDOW_S)
+    period_s: float = Field(600.0, ge=1, le=MAX_PERIOD_S)
     workers: int = Field(2, ge=1, le=64)
     """Worker processes that run the diagnosis chain."""
     confirm: int = Field(2, ge=1, le=100)
     """Consecutive diagnoses that must agree on a new cause before a loop's state changes."""
-    quantify_every_s: float = Field(3600.0, ge=0)
+    quantify_every_s: float = Field(3600.0, ge=0, le=MAX_WINDOW_S)
     """Shortest time between two S/J estimates of one valve (0: every diagnosis)."""
     engine: Literal["local", "queue"] = "local"
     """Where the diagnosis runs: ``local``, this process's worker pool (any database);
@@ -171,7 +200,7 @@ class SchedulerConfig(_Strict):
     takeover_poll_s: float = Field(2.0, gt=0, le=60)
     """How often a standby ``plantcheck run`` tries the scheduler lock, and the holder checks
     it still holds it (s; PostgreSQL)."""
-    window_cache_mb: float = Field(256.0, ge=0)
+    window_cache_mb: float = Field(256.0, ge=0, le=65536)
     """Memory for the loops' rolling windows kept between diagnoses, MB (each run then reads
     only the new samples; about 0.3 MB per loop for a 2-h window at 1 s; 0: read every window
     whole)."""
@@ -259,6 +288,13 @@ class ScaleConfig(_Strict):
     gain: float = 1.0
     offset: float = 0.0
 
+    @field_validator("gain")
+    @classmethod
+    def _nonzero(cls, v: float) -> float:
+        if v == 0:
+            raise ValueError("gain 0 would make every value the offset; leave it out for 1")
+        return v
+
 
 class LoopConfig(_Strict):
     """A control loop and where its signals come from."""
@@ -272,8 +308,8 @@ class LoopConfig(_Strict):
     mv: str = ""
     mode: str = ""
     scale: dict[Literal["sp", "pv", "op", "mv"], ScaleConfig] = {}
-    window_s: float | None = Field(None, ge=60)
-    period_s: float | None = Field(None, ge=1)
+    window_s: float | None = Field(None, ge=60, le=MAX_WINDOW_S)
+    period_s: float | None = Field(None, ge=1, le=MAX_PERIOD_S)
     description: str = ""
     stiction_limit: float = Field(2.0, gt=0, le=100)
     """S (% of valve travel) at which the valve is due for maintenance (stiction report)."""
@@ -367,6 +403,12 @@ def load_config(path: Path | None = None) -> Config:
     """Read and validate the configuration (``ConfigError`` with line and key when invalid)."""
     path = path or DEFAULT_CONFIG
     cfg = load_toml(path, Config)
+    if not cfg.model_fields_set:
+        raise ConfigError(
+            str(path), None, "file", "sets nothing (empty, or only comments): describe the "
+            "site's [[source]] and [[loop]] tables (README, Configuration), or leave --config "
+            "out to run on the embedded defaults"
+        )  # fmt: skip
     problems = cfg.problems()
     if problems:
         loc, msg = problems[0]

@@ -1,8 +1,13 @@
 """Loop record files (contracts.md §1): CSV with a header, read into uniform numpy arrays.
 
 - separator ``,``, ``;`` or tab, detected from the header line; column names case-insensitive;
-- time from ``timestamp`` (ISO 8601, no zone = UTC) or ``t`` (seconds); without either the
-  rows are taken as equally spaced at ``--sample-time`` (or 1 s, noted);
+- time from ``timestamp`` (ISO 8601, no zone = UTC; zones converted to UTC) or ``t`` (seconds;
+  POSIX times in milliseconds, microseconds or nanoseconds are recognised by their size,
+  converted and noted); without either the rows are taken as equally spaced at
+  ``--sample-time`` (or 1 s, noted);
+- a column name given twice is refused (which one holds the signal cannot be told);
+- values beyond ±``MAX_ABS_VALUE`` are no measurement (an instrument's overflow code, a
+  corrupt export): gaps, noted;
 - ``pv``, ``op`` required for the diagnosis, ``sp``, ``mv``, ``mode`` optional;
 - missing or non-numeric cells are gaps (NaN), never zeros;
 - duplicate timestamps are merged (mean), unsorted rows are sorted, irregular spacing is
@@ -18,6 +23,7 @@ import contextlib
 import csv
 import io
 import math
+import warnings
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
@@ -65,6 +71,14 @@ def _detect_separator(header: str) -> str:
     return sep if counts[sep] > 0 else ","
 
 
+MAX_ABS_VALUE = 1e12
+"""Largest magnitude taken as a measured value (any unit a loop uses stays far below)."""
+
+EPOCH_UNITS = ((1e17, 1e9, "nanoseconds"), (1e14, 1e6, "microseconds"), (1e11, 1e3, "milliseconds"))
+"""(smallest typical value, divisor, name): POSIX times in finer units than seconds. 1e11 s is
+the year 5138, so a ``t`` that large is a finer unit, not seconds."""
+
+
 def _to_float(cells: list[str]) -> FloatArray:
     """Parse cells as floats; anything non-numeric (or non-finite) becomes NaN."""
     try:
@@ -90,14 +104,19 @@ def _to_float(cells: list[str]) -> FloatArray:
     return out
 
 
-def _parse_timestamps(cells: list[str]) -> FloatArray:
-    """ISO 8601 timestamps to POSIX seconds (no zone = UTC); unparsable cells are NaN."""
+def _parse_timestamps(cells: list[str], notes: list[str] | None = None) -> FloatArray:
+    """ISO 8601 timestamps to POSIX seconds (no zone = UTC, other zones converted, noted);
+    unparsable cells are NaN."""
     try:
-        arr = np.array([c.strip().rstrip("Z") for c in cells], dtype="datetime64[us]")
+        with warnings.catch_warnings():
+            # numpy parses a "+01:00" with a deprecation warning: such cells take the slow path
+            warnings.simplefilter("error")
+            arr = np.array([c.strip().rstrip("Z") for c in cells], dtype="datetime64[us]")
         return np.asarray(arr.astype(np.int64) / 1e6, dtype=np.float64)
-    except ValueError:
+    except (ValueError, UserWarning, DeprecationWarning):
         pass
     out = np.full(len(cells), np.nan)
+    zones: set[str] = set()
     for i, c in enumerate(cells):
         s = c.strip()
         if not s:
@@ -108,8 +127,44 @@ def _parse_timestamps(cells: list[str]) -> FloatArray:
             continue
         if dt.tzinfo is None:
             dt = dt.replace(tzinfo=UTC)
-        out[i] = dt.timestamp()
+        zones.add(str(dt.utcoffset()))
+        with contextlib.suppress(OverflowError, OSError, ValueError):
+            out[i] = dt.timestamp()
+    if notes is not None and zones - {"0:00:00"}:
+        notes.append(
+            f"timestamps carry {len(zones)} time zone offset(s) "
+            f"({', '.join(sorted(zones))}): converted to UTC"
+        )
     return out
+
+
+def _epoch_seconds(t: FloatArray, notes: list[str]) -> FloatArray:
+    """``t`` in seconds: POSIX times in ms, µs or ns recognised by their size and converted."""
+    finite = t[np.isfinite(t)]
+    if not finite.size:
+        return t
+    typical = float(np.median(np.abs(finite)))
+    for least, divisor, unit in EPOCH_UNITS:
+        if typical >= least:
+            if typical / divisor >= 1e11:
+                return t  # beyond any unit: the time check refuses what is out of line
+            notes.append(
+                f"t read as POSIX time in {unit} (values near {typical:.3g}): converted to seconds"
+            )
+            return t / divisor
+    return t
+
+
+def _measured(values: FloatArray, name: str, notes: list[str]) -> FloatArray:
+    """``values`` with magnitudes beyond ``MAX_ABS_VALUE`` as gaps (noted)."""
+    wild = np.abs(np.nan_to_num(values, nan=0.0)) > MAX_ABS_VALUE
+    if wild.any():
+        notes.append(
+            f"{int(wild.sum())} {name} values beyond ±{MAX_ABS_VALUE:.0e} taken as gaps (no "
+            "instrument reads that: an overflow code or a corrupt export)"
+        )
+        values = np.where(wild, np.nan, values)
+    return values
 
 
 MAX_LINE_CHARS = 65_536
@@ -222,12 +277,21 @@ def read_record(
         raise RecordError(
             f"--sample-time must be a positive number of seconds, not {sample_time_s}"
         )
+    known = ("pv", "op", "sp", "mv", "t", "timestamp", "mode")
+    twice = [h for h in known if header.count(h) > 1]
+    if twice:
+        where = [i + 1 for i, h in enumerate(header) if h == twice[0]]
+        raise RecordError(
+            f"{path}: column {twice[0]!r} appears {len(where)} times in the header (columns "
+            f"{', '.join(map(str, where))}); keep the one that holds the signal and rename or "
+            "delete the others"
+        )
     col = {h: columns[i] for i, h in enumerate(header)}
     if "timestamp" in col:
-        t = _parse_timestamps(col["timestamp"])
+        t = _parse_timestamps(col["timestamp"], notes)
         time_name = "timestamp"
     elif "t" in col:
-        t = _to_float(col["t"])
+        t = _epoch_seconds(_to_float(col["t"]), notes)
         time_name = "t"
     else:
         t = np.arange(n, dtype=np.float64) * (sample_time_s or 1.0)
@@ -235,7 +299,9 @@ def read_record(
         notes.append(
             f"no timestamp or t column: rows taken as equally spaced at {sample_time_s or 1.0:g} s"
         )
-    signals = {name: _to_float(col[name]) for name in SIGNALS if name in col}
+    signals = {
+        name: _measured(_to_float(col[name]), name, notes) for name in SIGNALS if name in col
+    }
     mode = None
     if "mode" in col:
         mode = np.array([c.strip().lower() in AUTO_MODES for c in col["mode"]], dtype=bool)

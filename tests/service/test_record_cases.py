@@ -2,7 +2,8 @@
 
 Each folder under ``record_cases/`` holds ``record.csv`` (absent for the missing-file case) and
 ``expected.json``: the exit status, and either a fragment of the one-line error on stderr or the
-diagnosed cause and a fragment of a note. Never a traceback.
+diagnosed cause and a fragment of a note. Never a traceback, and after a diagnosis nothing on
+stderr (no library warning).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ def test_record_case(case: Path, run_cli: RunCli) -> None:
         assert expected["stderr"].lower() in proc.stderr.lower()
         assert proc.stdout == ""
         return
+    assert proc.stderr == "", proc.stderr
     out = json.loads(proc.stdout)
     assert out["schema"] == "plantcheck.diagnosis/1"
     if "cause" in expected:
