@@ -8,12 +8,15 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import time
 from typing import Any
 
 from plantcheck.api.deps import iso
 from plantcheck.storage.results import LoopStatus, loop_statuses
 from plantcheck.storage.store import Store
+
+log = logging.getLogger("plantcheck.api")
 
 
 def loop_json(s: LoopStatus) -> dict[str, Any]:
@@ -58,6 +61,27 @@ class LoopTable:
         self._newest_us: int | None = None
         self._lock = asyncio.Lock()
         self._refresh: asyncio.Task[None] | None = None
+        self._failing = False
+        """The last background refresh failed (logged once per outage)."""
+
+    def _refreshed(self, task: asyncio.Task[None]) -> None:
+        """A background refresh ended: its failure is logged once per outage, and the return
+        once (never "exception was never retrieved" per request)."""
+        if task.cancelled():
+            return
+        exc = task.exception()
+        if exc is None:
+            if self._failing:
+                log.warning("loop table: the store answers again; the table is current")
+            self._failing = False
+        elif not self._failing:
+            self._failing = True
+            log.error(
+                "loop table: cannot refresh from the store (%s: %s); serving the table as "
+                "last read until it answers",
+                type(exc).__name__,
+                str(exc).splitlines()[0] if str(exc) else "",
+            )
 
     async def _build(self, store: Store) -> None:
         now = time.monotonic()
@@ -92,4 +116,5 @@ class LoopTable:
             self._refresh is None or self._refresh.done()
         ):
             self._refresh = asyncio.create_task(self._build(store))
+            self._refresh.add_done_callback(self._refreshed)
         return self._rows, self._body
