@@ -16,12 +16,12 @@ import time
 from typing import Annotated, Literal
 
 import numpy as np
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, HTTPException, Query, Response
 
 from plantcheck.api.deps import Backend, TimeRange, iso, iso_required, require_read_key
 from plantcheck.api.models import StictionPoint, StictionReport, ValveReport, WeekOut
 from plantcheck.diagnosis.stiction_trend import TrendParams
-from plantcheck.storage.results import stiction_history
+from plantcheck.storage.results import count_estimates, stiction_history
 from plantcheck.storage.trends import StoredEstimate, StoredTrend, read_trends
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
@@ -133,7 +133,25 @@ def report_csv(report: StictionReport) -> str:
     return buf.getvalue()
 
 
+MAX_REPORT_ESTIMATES = 200_000
+"""Most stiction estimates one report reads (a year of hourly estimates of 20 valves; a plant
+of hundreds asks for a shorter span)."""
+
+
 async def build_report(backend: Backend, times: TimeRange) -> StictionReport:
+    n = await count_estimates(backend.store, times.start_us, times.end_us)
+    if n > MAX_REPORT_ESTIMATES:
+        raise HTTPException(
+            422,
+            [
+                {
+                    "loc": ["query", "from"],
+                    "msg": f"the span holds {n} stiction estimates, more than one report reads "
+                    f"({MAX_REPORT_ESTIMATES}): ask a shorter span with 'from' and 'to'",
+                    "type": "value_error",
+                }
+            ],
+        )
     history = await stiction_history(backend.store, times.start_us, times.end_us)
     trends = await read_trends(backend.store)
     limits = backend.stiction_limits

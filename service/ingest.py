@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -126,6 +127,22 @@ def down_past_grace(cfg: Config, health: Sequence[SourceHealth], now_us: int) ->
     ]
 
 
+def shares_a_disk(url: str, buffer_path: Path) -> bool:
+    """A SQLite database and the durable buffer on one filesystem: one full or read-only disk
+    then stops both, and samples can only wait in memory (issue 45)."""
+    if not url.startswith("sqlite"):
+        return False
+    db = url.split("///", 1)[-1]
+    if not db or db == ":memory:" or str(buffer_path) == ":memory:":
+        return False
+    try:
+        a = os.stat(Path(db).resolve().parent).st_dev
+        b = os.stat(buffer_path.resolve().parent).st_dev
+    except OSError:
+        return False
+    return a == b
+
+
 class Ingestion:
     """Store, sample writer and connectors of one configuration, running together."""
 
@@ -178,6 +195,14 @@ class Ingestion:
             rollup_tags=tag_ids,
             rollup_retention_s=cfg.storage.rollup_retention_days * 86400.0,
         )
+        if shares_a_disk(cfg.storage.url, Path(cfg.storage.buffer_path)):
+            log.info(
+                "the database and the durable buffer %s are on one disk: if it fills or turns "
+                "read-only, samples wait in memory (at most %d); put [storage] buffer_path on "
+                "another disk or volume (README, 'Where the buffer lives')",
+                cfg.storage.buffer_path,
+                cfg.storage.memory_max_samples,
+            )
         writer.put(await restart_gaps(store, writer, tag_ids))
         writer.start()
         sink: SampleSink = writer.put

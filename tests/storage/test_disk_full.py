@@ -176,3 +176,13 @@ def test_stopping_while_nothing_takes_samples_says_how_many_are_lost(
         with caplog.at_level(logging.ERROR, logger="plantcheck.storage"):
             held = asyncio.run(body())
         assert f"stopping with {held} samples" in caplog.text
+
+
+def test_a_database_and_buffer_on_one_disk_are_told_apart_from_two(tmp_path: Path) -> None:
+    from plantcheck.service.ingest import shares_a_disk
+
+    url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    assert shares_a_disk(url, tmp_path / "buffer.db")
+    assert not shares_a_disk("postgresql+asyncpg://u@127.0.0.1/db", tmp_path / "buffer.db")
+    with small_disk(tmp_path / "disk") as disk:
+        assert not shares_a_disk(url, disk.path / "buffer.db")
