@@ -18,8 +18,7 @@ from fastapi.staticfiles import StaticFiles
 
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
-from plantcheck.api.deps import AccessSettings
-from plantcheck.api.gate import HeavyReadGate, ReadKeyGate
+from plantcheck.api.gate import AccessSettings, HeavyReadGate, ReadKeyGate
 from plantcheck.api.loop_table import LoopTable
 from plantcheck.storage.errors import store_outage_errors
 

@@ -4,28 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from typing import Annotated, Literal, Protocol
+from typing import Annotated, Protocol
 
 import numpy as np
 from fastapi import Depends, Header, HTTPException, Query, Request
 
-from plantcheck.api.gate import key_matches
+from plantcheck.api.gate import AccessSettings, key_matches
 from plantcheck.api.models import Readiness, StorageOut
 from plantcheck.core.source_health import SourceHealth
 from plantcheck.storage.store import LoopRow, Store
 
 API_KEY_HEADER = "X-API-Key"
-
-
-class AccessSettings(Protocol):
-    """The API-key settings the routes check (the service's ``[api]`` table)."""
-
-    @property
-    def api_key(self) -> str: ...
-    @property
-    def require_key_for_reads(self) -> bool: ...
-    @property
-    def metrics_access(self) -> Literal["open", "key", "off"]: ...
 
 
 class ServiceBackend(Protocol):

@@ -22,8 +22,8 @@ PROBES = frozenset({"/healthz", "/readyz"})
 """Open whatever the settings: orchestrators and load balancers probe without a key."""
 
 
-class GateSettings(Protocol):
-    """The ``[api]`` settings the key gate reads."""
+class AccessSettings(Protocol):
+    """The ``[api]`` settings the key gate and the routes' key checks read."""
 
     @property
     def api_key(self) -> str: ...
@@ -52,7 +52,7 @@ async def _refuse(send: Any, status: int, detail: str) -> None:
 class ReadKeyGate:
     """Refuses, before any route runs, what needs the key and does not carry it."""
 
-    def __init__(self, app: Any, settings: GateSettings) -> None:
+    def __init__(self, app: Any, settings: AccessSettings) -> None:
         self.app = app
         self.settings = settings
 

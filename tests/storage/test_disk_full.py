@@ -11,11 +11,13 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from helpers import one_loop_config
-from smalldisk import small_disk
+from smalldisk import SmallDisk, small_disk
 
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION, GOOD
@@ -36,28 +38,46 @@ async def _until(cond: object, timeout_s: float = 15.0) -> None:
         await asyncio.sleep(0.1)
 
 
+def _store_url(disk: SmallDisk) -> str:
+    url = f"sqlite+aiosqlite:///{disk.path / 'store.db'}"
+    upgrade(url)
+    return url
+
+
+async def _writer(url: str, buffer: Path, **kw: Any) -> tuple[Store, int, SampleWriter]:
+    """The store at ``url``, FIC1's PV tag and a started writer buffering to ``buffer``."""
+    store = await Store.open(url)
+    tag = (await store.sync_config(one_loop_config()))["FIC1"].tags["pv"]
+    w = SampleWriter(store, buffer, commit_interval_s=0.1, **kw)
+    w.start()
+    return store, tag, w
+
+
+async def _feed_until(w: SampleWriter, tag: int, first: int, done: Callable[[], bool]) -> int:
+    """Hand over 500 samples every 0.1 s until ``done()``; the next sample's number."""
+    sent = first
+    while not done():
+        w.put(_rows(tag, sent, 500))
+        sent += 500
+        await asyncio.sleep(0.1)
+        assert sent < 200_000, "the full disk never refused a write"
+    return sent
+
+
 def test_one_full_disk_holds_samples_in_memory_and_writes_them_when_freed(
     tmp_path: Path,
 ) -> None:
     with small_disk(tmp_path / "disk") as disk:
-        url = f"sqlite+aiosqlite:///{disk.path / 'store.db'}"
-        upgrade(url)
+        url = _store_url(disk)
 
         async def body() -> None:
-            store = await Store.open(url)
-            tag = (await store.sync_config(one_loop_config()))["FIC1"].tags["pv"]
-            w = SampleWriter(store, disk.path / "buffer.db", commit_interval_s=0.1, retry_max_s=1)
-            w.start()
+            store, tag, w = await _writer(url, disk.path / "buffer.db", retry_max_s=1)
             w.put(_rows(tag, 0, 100))
             await _until(lambda: w.stats.stored >= 100)
             disk.fill()
-            sent = 100
-            while w.stats.store_up or w.stats.buffer_up:  # both fail within a few commits
-                w.put(_rows(tag, sent, 500))
-                sent += 500
-                await asyncio.sleep(0.1)
-                assert sent < 200_000, "the full disk never refused a write"
-            assert not w.writing and w.held > 0 and w.stats.store_error
+            # both fail within a few commits
+            sent = await _feed_until(w, tag, 100, lambda: not w.writing)
+            assert w.held > 0 and w.stats.store_error
             assert w._task is not None and not w._task.done()  # the commit task lives on
             for _ in range(5):  # arriving while both fail: held, nothing dropped yet
                 w.put(_rows(tag, sent, 100))
@@ -78,27 +98,14 @@ def test_one_full_disk_holds_samples_in_memory_and_writes_them_when_freed(
 
 def test_memory_is_bounded_and_a_drop_is_counted_and_marked(tmp_path: Path) -> None:
     with small_disk(tmp_path / "disk") as disk:
-        url = f"sqlite+aiosqlite:///{disk.path / 'store.db'}"
-        upgrade(url)
+        url = _store_url(disk)
 
         async def body() -> None:
-            store = await Store.open(url)
-            tag = (await store.sync_config(one_loop_config()))["FIC1"].tags["pv"]
-            w = SampleWriter(
-                store,
-                disk.path / "buffer.db",
-                commit_interval_s=0.1,
-                retry_max_s=1,
-                memory_max_samples=2000,
+            store, tag, w = await _writer(
+                url, disk.path / "buffer.db", retry_max_s=1, memory_max_samples=2000
             )
-            w.start()
             disk.fill()
-            sent = 0
-            while w.writing:
-                w.put(_rows(tag, sent, 500))
-                sent += 500
-                await asyncio.sleep(0.1)
-                assert sent < 200_000, "the full disk never refused a write"
+            sent = await _feed_until(w, tag, 0, lambda: not w.writing)
             held = w.held
             w.put(_rows(tag, sent, 5000))  # past the bound: dropped, counted, marked
             sent += 5000
@@ -121,21 +128,12 @@ def test_memory_is_bounded_and_a_drop_is_counted_and_marked(tmp_path: Path) -> N
 
 def test_a_full_database_with_the_buffer_elsewhere_loses_nothing(tmp_path: Path) -> None:
     with small_disk(tmp_path / "disk") as disk:
-        url = f"sqlite+aiosqlite:///{disk.path / 'store.db'}"
-        upgrade(url)
+        url = _store_url(disk)
 
         async def body() -> None:
-            store = await Store.open(url)
-            tag = (await store.sync_config(one_loop_config()))["FIC1"].tags["pv"]
-            w = SampleWriter(store, tmp_path / "buffer.db", commit_interval_s=0.1, retry_max_s=1)
-            w.start()
+            store, tag, w = await _writer(url, tmp_path / "buffer.db", retry_max_s=1)
             disk.fill()
-            sent = 0
-            while w.stats.store_up:
-                w.put(_rows(tag, sent, 500))
-                sent += 500
-                await asyncio.sleep(0.1)
-                assert sent < 200_000, "the full disk never refused a write"
+            sent = await _feed_until(w, tag, 0, lambda: not w.stats.store_up)
             await _until(lambda: w.held == 0)  # spilled to the buffer on the other disk
             assert w.stats.buffer_up and len(w.buffer) > 0 and w.dropped == 0
             assert await store.ping()  # reads still work: only the writes tell
@@ -152,21 +150,12 @@ def test_stopping_while_nothing_takes_samples_says_how_many_are_lost(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     with small_disk(tmp_path / "disk") as disk:
-        url = f"sqlite+aiosqlite:///{disk.path / 'store.db'}"
-        upgrade(url)
+        url = _store_url(disk)
 
         async def body() -> int:
-            store = await Store.open(url)
-            tag = (await store.sync_config(one_loop_config()))["FIC1"].tags["pv"]
-            w = SampleWriter(store, disk.path / "buffer.db", commit_interval_s=0.1)
-            w.start()
+            store, tag, w = await _writer(url, disk.path / "buffer.db")
             disk.fill()
-            sent = 0
-            while w.writing:
-                w.put(_rows(tag, sent, 500))
-                sent += 500
-                await asyncio.sleep(0.1)
-                assert sent < 200_000, "the full disk never refused a write"
+            await _feed_until(w, tag, 0, lambda: not w.writing)
             held = w.held
             await w.stop()  # must not raise
             await store.close()
