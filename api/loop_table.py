@@ -7,6 +7,7 @@ at most once per diagnosis period; one store query per second serves any number 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import time
@@ -39,8 +40,10 @@ def loop_json(s: LoopStatus) -> dict[str, Any]:
 class LoopTable:
     """Cached rows and JSON body of the whole table, ``ttl_s`` seconds old at most once warm.
 
-    Stale-while-revalidate: after the first build a reader never waits for the store; a stale
-    table is served while one background refresh runs. A refresh reads only the loops diagnosed
+    A reader of a table older than ``ttl_s`` waits for one shared refresh (at most
+    ``wait_s``; a store that does not answer in that time gets the table as last read, so the
+    page never hangs on an outage): what a poller sees is never one request old (issue 47). A
+    refresh reads only the loops diagnosed
     since the last one (with ``margin_s`` for the clocks of workers on other machines) and keeps
     each row's JSON, so at 10,000 loops it costs a few milliseconds of the event loop instead of
     the 150-250 ms a whole rebuild takes; the whole table is still read every ``full_every_s``
@@ -48,9 +51,14 @@ class LoopTable:
     """
 
     def __init__(
-        self, ttl_s: float = 1.0, full_every_s: float = 300.0, margin_s: float = 2.0
+        self,
+        ttl_s: float = 0.5,
+        full_every_s: float = 300.0,
+        margin_s: float = 2.0,
+        wait_s: float = 2.0,
     ) -> None:
         self.ttl_s = ttl_s
+        self.wait_s = wait_s
         self.full_every_s = full_every_s
         self.margin_us = int(margin_s * 1e6)
         self._at = -float("inf")
@@ -112,9 +120,11 @@ class LoopTable:
             async with self._lock:
                 if self._at == -float("inf"):
                     await self._build(store)
-        elif time.monotonic() - self._at >= self.ttl_s and (
-            self._refresh is None or self._refresh.done()
-        ):
-            self._refresh = asyncio.create_task(self._build(store))
-            self._refresh.add_done_callback(self._refreshed)
+        elif time.monotonic() - self._at >= self.ttl_s:
+            if self._refresh is None or self._refresh.done():
+                self._refresh = asyncio.create_task(self._build(store))
+                self._refresh.add_done_callback(self._refreshed)
+            # shielded: a reader that gives up does not cancel the refresh the others share
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(asyncio.shield(self._refresh), self.wait_s)
         return self._rows, self._body

@@ -3,7 +3,8 @@
 - ``plantcheck_samples_received_total`` / ``plantcheck_samples_stored_total``: samples taken from
   the connectors and committed to the store (Prometheus' ``rate()`` gives samples/s);
   ``plantcheck_samples_per_second``: received samples per second over the last minute.
-- ``plantcheck_buffer_depth``: samples waiting in memory and in the durable buffer.
+- ``plantcheck_buffer_depth``: samples waiting because the store did not take them (in the
+  durable buffer, and in memory while commits fail); 0 while the store keeps up.
 - ``plantcheck_diagnosis_duration_seconds``: read + diagnose + store time per loop window.
 - ``plantcheck_loops``: loops per state (``ok``, ``warning``, ``fault``, ``unknown``);
   ``plantcheck_loop_state{loop, state}``: 1 for each loop's current state.
@@ -16,8 +17,8 @@
   down or not yet connected.
 - ``plantcheck_diagnoses_total``: diagnoses by outcome (``done``, ``failed``).
 - ``plantcheck_window_cache_bytes``: memory held by the scheduler's rolling windows.
-- ``plantcheck_scheduler_leader``: 1 while this process holds the scheduler lock (PostgreSQL),
-  0 while it stands by.
+- ``plantcheck_scheduler_leader``: 1 while this process schedules the diagnosis (it holds the
+  scheduler lock on PostgreSQL; on SQLite the one process always does), 0 while it stands by.
 - Job queue (``engine = "queue"``): ``plantcheck_queue_jobs{status}`` (jobs by status),
   ``plantcheck_queue_job_latency_seconds`` (enqueued to finished),
   ``plantcheck_queue_jobs_skipped_total`` (a batch still waiting at its next period),
@@ -56,7 +57,7 @@ class ServiceMetrics:
         )
         self.buffer_depth = Gauge(
             "plantcheck_buffer_depth",
-            "Samples waiting to be stored (memory queue and durable buffer).",
+            "Samples waiting because the store did not take them (buffer, memory).",
             registry=r,
         )
         self.diagnosis_duration = Histogram(
@@ -140,7 +141,9 @@ class ServiceMetrics:
         )
         for s in STATES:
             self.loops.labels(s).set(0)
-        self._received: deque[tuple[float, int]] = deque()
+        self._received: deque[tuple[float, int]] = deque([(time.monotonic(), 0)])
+        """(time, samples received so far) at each scrape, back to the last one older than
+        the span, and the start: the rate spans at least the span whatever the scrape pace."""
         self._received_total = 0
 
     def received(self, n: int) -> None:
@@ -152,7 +155,9 @@ class ServiceMetrics:
         """Received samples per second over the last ``span_s`` seconds (updates the gauge)."""
         now = time.monotonic() if now is None else now
         self._received.append((now, self._received_total))
-        while len(self._received) > 1 and now - self._received[0][0] > span_s:
+        # keep the newest point at least ``span_s`` old: scraped every 15 s or every 5 min,
+        # the rate is over the last minute or more, never over no time at all (issue 47)
+        while len(self._received) > 2 and now - self._received[1][0] >= span_s:
             self._received.popleft()
         t0, n0 = self._received[0]
         rate = (self._received_total - n0) / (now - t0) if now > t0 else 0.0

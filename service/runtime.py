@@ -157,6 +157,8 @@ class Runtime:
         rt = cls(cfg, ServiceMetrics(), config_hint, connect, schedule)
         if not (schedule and cfg.storage.url.startswith("postgresql")):
             await rt._lead()
+            # one process per SQLite database: it schedules alone, so it leads (issue 47)
+            rt.metrics.leader.set(1 if schedule else 0)
             rt._reports = asyncio.create_task(rt._read_reports(), name="health-reports")
             return rt
         rt._lock_store = await Store.open(cfg.storage.url, config_hint=config_hint)
@@ -378,7 +380,7 @@ class Runtime:
             if stored > self._stored_seen:
                 m.samples_stored.inc(stored - self._stored_seen)
                 self._stored_seen = stored
-            m.buffer_depth.set(w.depth)
+            m.buffer_depth.set(w.backlog)
             m.set_sources(self.ingestion.source_health())
             m.set_store(w.stats.store_up, w.stats.store_failures)
             m.set_buffer(w.stats.buffer_up, w.held, w.dropped)

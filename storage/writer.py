@@ -159,6 +159,12 @@ class SampleWriter:
         return len(self._pending) + len(self.buffer)
 
     @property
+    def backlog(self) -> int:
+        """Samples waiting because the store did not take them: in the durable buffer, and in
+        memory while commits fail (not the second's batch on its way, issue 47)."""
+        return len(self.buffer) + (0 if self.stats.store_up else len(self._pending))
+
+    @property
     def writing(self) -> bool:
         """Samples reach the disk: the store commits, or the buffer takes what it cannot."""
         return self.stats.store_up or self.stats.buffer_up

@@ -17,6 +17,32 @@ from servicehelpers import Service, fill_store, start_service, wait_diagnosed, w
 
 from plantcheck.storage.database import upgrade
 
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _root_entries() -> set[str]:
+    """What the repository root holds, but tool caches (``.pytest_cache``, ...)."""
+    return {p.name for p in ROOT.iterdir() if not p.name.startswith(".")}
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    session.config.stash[ROOT_BEFORE] = _root_entries()
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """A test that leaves a file in the repository root (a database, a buffer written to the
+    working folder) fails the run, naming it (issue 47)."""
+    before = session.config.stash.get(ROOT_BEFORE, None)
+    if before is None:
+        return
+    left = sorted(_root_entries() - before)
+    if left:
+        print(f"\ntests left these in the repository root: {', '.join(left)}")
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+ROOT_BEFORE = pytest.StashKey[set[str]]()
+
 
 @pytest.fixture
 def run_cli() -> RunCli:

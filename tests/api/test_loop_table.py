@@ -44,3 +44,26 @@ def test_increments_follow_new_verdicts(tmp_path: Path) -> None:
             await store.close()
 
     asyncio.run(run())
+
+
+def test_a_reader_after_a_new_verdict_gets_it_not_the_table_before(tmp_path: Path) -> None:
+    """Polled every 10 s (or at any pace), the table is as fresh as the store: the verdict
+    committed before a request is in that request's answer (issue 47: it came one poll late)."""
+    url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    upgrade(url)
+
+    async def run() -> None:
+        store = await Store.open(url)
+        try:
+            row = await store.ensure_loop("L0", signals=("pv", "op"))
+            await record_verdict(store, verdict_of(row, 10**15, "ok"))
+            table = LoopTable(ttl_s=0.05)
+            assert [r["cause"] for r in (await table.get(store))[0]] == ["ok"]
+            await record_verdict(store, verdict_of(row, 10**15 + M, "stiction", S=3.0))
+            await asyncio.sleep(0.1)  # the poller's next visit, after the table's ttl
+            rows, body = await table.get(store)
+            assert rows[0]["cause"] == "stiction" and json.loads(body)[0]["S"] == 3.0
+        finally:
+            await store.close()
+
+    asyncio.run(run())

@@ -24,7 +24,8 @@ T0 = 1_700_000_000 // 3600 * HOUR_US
 def _config(url: str) -> Config:
     return Config.model_validate(
         {
-            "storage": {"url": url},
+            # the buffer beside the database in the test's folder, never in the working folder
+            "storage": {"url": url, "buffer_path": str(Path(url.split("///")[1]).parent / "b.db")},
             "source": [{"name": "plc", "protocol": "modbus", "port": 5020}],
             "loop": [
                 {"id": "FIC1", "source": "plc", "type": "flow", "sp": "hr:0:float32",

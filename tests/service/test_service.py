@@ -109,6 +109,10 @@ def test_probes_and_metrics(service: Service) -> None:
         'plantcheck_source_up{protocol="opcua",source="sim-opcua"} 0.0',
         "plantcheck_store_up 1.0",
         "plantcheck_store_failures_total 0.0",
+        "plantcheck_scheduler_leader 1.0",  # the one SQLite process schedules
+        "plantcheck_buffer_depth 0.0",  # the store keeps up: nothing waits
+        "plantcheck_buffer_up 1.0",
+        "plantcheck_samples_dropped_total 0.0",
     ):
         assert name in text
     assert re.search(r'plantcheck_loops\{state="fault"\} [1-9]', text)
