@@ -145,7 +145,7 @@ def run_cmd(
         )
     api = cfg.api.model_copy(update={k: v for k, v in (("host", host), ("port", port)) if v})
     cfg = cfg.model_copy(update={"api": api})
-    hint = f" --config {config}" if config else ""
+    hint = str(config) if config else ""  # the path; the fix hints add the flag
     if migrate:
         migrate_or_fail(cfg.storage.url)
     asyncio.run(_check_store(cfg, hint))
@@ -208,7 +208,7 @@ def worker_cmd(
             "plantcheck worker runs jobs of the PostgreSQL job queue: set [scheduler] engine = "
             '"queue" (and a postgresql+asyncpg:// [storage] url) in the configuration'
         )
-    asyncio.run(_work(cfg, f" --config {config}" if config else "", concurrency))
+    asyncio.run(_work(cfg, str(config) if config else "", concurrency))
 
 
 def _free_port() -> int:

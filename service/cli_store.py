@@ -118,7 +118,7 @@ def import_cmd(
     from plantcheck.storage.store import Store
 
     async def run() -> int:
-        store = await Store.open(cfg.storage.url, config_hint=str(config or "plantcheck.toml"))
+        store = await Store.open(cfg.storage.url, config_hint=str(config) if config else "")
         try:
             sigs = [s for s in ("sp", "pv", "op", "mv") if rec.get(s) is not None]
             if rec.auto is not None:
@@ -190,7 +190,7 @@ def ingest_cmd(
 
     async def run() -> None:
         ing = await Ingestion.start(
-            cfg, config_hint=str(config or "plantcheck.toml"), collector=collector
+            cfg, config_hint=str(config) if config else "", collector=collector
         )
         try:
             await ing.wait(seconds)

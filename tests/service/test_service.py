@@ -225,10 +225,13 @@ def test_bad_config_refused_with_line_and_key(tmp_path: Path, run_cli: RunCli) -
 def test_unmigrated_database_refused_with_the_fix(tmp_path: Path, run_cli: RunCli) -> None:
     cfg = tmp_path / "plantcheck.toml"
     cfg.write_text(
-        f'[storage]\nurl = "sqlite+aiosqlite:///{tmp_path / "x.db"}"\n', encoding="utf-8"
+        f'[storage]\nurl = "sqlite+aiosqlite:///{tmp_path / "x.db"}"\n'
+        f'buffer_path = "{tmp_path / "b.db"}"\n',
+        encoding="utf-8",
     )
     r = run_cli("run", "--config", str(cfg))
-    assert r.returncode == 2 and "plantcheck db upgrade" in r.stderr
+    # the fix names the file once (issue 47: "db upgrade --config  --config FILE")
+    assert r.returncode == 2 and f"plantcheck db upgrade --config {cfg}`" in r.stderr, r.stderr
 
 
 @pytest.mark.parametrize("command", ["run", "ingest"])

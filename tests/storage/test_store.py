@@ -101,7 +101,7 @@ def test_db_upgrade_and_import_cli(tmp_path: Path, run_cli) -> None:  # type: ig
         "2026-01-01T00:00:02Z,50,50.2,42\n"
     )
     r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
-    assert r.returncode == 2 and "plantcheck db upgrade" in r.stderr
+    assert r.returncode == 2 and f"plantcheck db upgrade --config {cfg}`" in r.stderr, r.stderr
     # the ids the configuration would refuse are refused here too, before anything is read
     for bad_id in ("L 1", "FIC/101", "x" * 65, ""):
         r = run_cli("import", str(rec), "--loop", bad_id, "--config", str(cfg))
