@@ -156,10 +156,10 @@ def _summary(d: Diagnosis) -> str:
     return "\n".join(lines)
 
 
-@app.command("diagnose")
+@app.command("diagnose", short_help="Diagnose one recorded loop: what is wrong and what to do.")
 def diagnose_cmd(
     file: Annotated[
-        Path, typer.Argument(help="Loop record CSV (contracts §1).", show_default=False)
+        Path, typer.Argument(help="Loop record CSV (docs/contracts.md §1).", show_default=False)
     ],
     loop_type: Annotated[
         LoopType, typer.Option("--loop-type", help="Kind of loop; selects the applicable tests.")
@@ -169,7 +169,7 @@ def diagnose_cmd(
         typer.Option("--sample-time", help="Sample time in s (default: median spacing)."),
     ] = None,
     as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON object (contracts §2).")
+        bool, typer.Option("--json", help="Print one JSON object (docs/contracts.md §2).")
     ] = False,
     max_samples: Annotated[
         int,
@@ -191,16 +191,18 @@ def diagnose_cmd(
     _emit(d.to_dict() if as_json else _summary(d), as_json)
 
 
-@app.command("oscillation")
+@app.command("oscillation", short_help="Test one signal of a record for oscillations.")
 def oscillation_cmd(
-    file: Annotated[Path, typer.Argument(help="Record CSV (contracts §1).", show_default=False)],
+    file: Annotated[
+        Path, typer.Argument(help="Record CSV (docs/contracts.md §1).", show_default=False)
+    ],
     column: Annotated[str, typer.Option("--column", help="Column to test, e.g. pv or op.")],
     sample_time: Annotated[
         float | None,
         typer.Option("--sample-time", help="Sample time in s (default: median spacing)."),
     ] = None,
     as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON object (contracts §3).")
+        bool, typer.Option("--json", help="Print one JSON object (docs/contracts.md §3).")
     ] = False,
     max_samples: Annotated[
         int,
@@ -267,12 +269,20 @@ def oscillation_cmd(
         _emit(text + "".join(f"\nnote: {n}" for n in notes), False)
 
 
-app.command("simulate")(simulate_cmd)
-app.command("import")(import_cmd)
-app.command("ingest")(ingest_cmd)
-app.command("run")(run_cmd)
-app.command("worker")(worker_cmd)
-app.command("demo")(demo_cmd)
+app.command(
+    "simulate", short_help="Run the simulated plant (Modbus TCP, OPC UA) or write its records."
+)(simulate_cmd)
+app.command("import", short_help="Backfill a record file into the store (idempotent).")(import_cmd)
+app.command("ingest", short_help="Collect the configured sources into the store (no diagnosis).")(
+    ingest_cmd
+)
+app.command("run", short_help="Run the service: ingest, diagnose, serve the API and the page.")(
+    run_cmd
+)
+app.command("worker", short_help='Run queued diagnosis jobs (engine = "queue", PostgreSQL).')(
+    worker_cmd
+)
+app.command("demo", short_help="Run the service against the bundled simulated plant.")(demo_cmd)
 app.add_typer(db_app, name="db")
 
 

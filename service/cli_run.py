@@ -264,7 +264,7 @@ def demo_cmd(
 ) -> None:
     """Demo: the bundled 8-loop plant simulated at high speed, ingested over OPC UA and
     diagnosed by the service on SQLite; open http://127.0.0.1:PORT/ (every loop shows its
-    cause within about 2 minutes)."""
+    cause within about a minute)."""
     from plantcheck.service.config import load_config
 
     configure_for_command("warning")

@@ -66,11 +66,16 @@ def simulate_cmd(
     ] = None,
     speed: Annotated[
         float | None,
-        typer.Option(help="Simulated seconds per wall second (1 = real time, 100 = 100x)."),
+        typer.Option(
+            help="Simulated seconds per wall second (1 = real time, 100 = 100x); default: the "
+            "scenario's clock.speed (1 in the bundled scenario)."
+        ),
     ] = None,
     to_csv: Annotated[
         Path | None,
-        typer.Option("--to-csv", help="Write each loop's record (contracts §1) here and exit."),
+        typer.Option(
+            "--to-csv", help="Write each loop's record (docs/contracts.md §1) here and exit."
+        ),
     ] = None,
     duration: Annotated[
         str, typer.Option(help="With --to-csv: simulated duration, e.g. 7200, 90m, 2h, 1d.")

@@ -88,7 +88,7 @@ def db_upgrade(config: ConfigOpt = None) -> None:
 
 
 def import_cmd(
-    file: Annotated[Path, typer.Argument(help="Loop record (CSV, contracts §1).")],
+    file: Annotated[Path, typer.Argument(help="Loop record (CSV, docs/contracts.md §1).")],
     loop: Annotated[str, typer.Option("--loop", help="Loop id to store the samples under.")],
     config: ConfigOpt = None,
     loop_type: Annotated[
@@ -117,13 +117,14 @@ def import_cmd(
     from plantcheck.core.status_codes import BAD_DATA_ENCODING_INVALID, GOOD
     from plantcheck.storage.store import Store
 
-    async def run() -> int:
+    async def run() -> tuple[int, int]:
         store = await Store.open(cfg.storage.url, config_hint=str(config) if config else "")
         try:
             sigs = [s for s in ("sp", "pv", "op", "mv") if rec.get(s) is not None]
             if rec.auto is not None:
                 sigs.append("mode")
             row = await store.ensure_loop(loop, loop_type.value, "import", sigs)
+            before = await store.count_samples(list(row.tags.values()))
             t_us = np.round((rec.start_epoch_s + rec.t) * 1e6).astype(np.int64)  # type: ignore[operator]
             now = time.time_ns() // 1000
             n = 0
@@ -139,15 +140,19 @@ def import_cmd(
                 for i in range(0, len(rows), 50_000):
                     await store.write_samples(rows[i : i + 50_000])
                 n += len(rows)
-            return n
+            return n, await store.count_samples(list(row.tags.values())) - before
         finally:
             await store.close()
 
     try:
-        n = asyncio.run(run())
+        n, added = asyncio.run(run())
     except StorageError as exc:
         raise fail(str(exc)) from None
-    typer.echo(f"imported {n} samples of loop {loop} ({rec.t.size} time points) from {file}")
+    # writes are idempotent on (tag, time): say what was new, not what was read (issue 47)
+    typer.echo(
+        f"imported {file}: {n} samples of loop {loop} ({rec.t.size} time points), {added} new, "
+        f"{n - added} already stored"
+    )
 
 
 def ingest_cmd(

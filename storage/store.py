@@ -13,6 +13,7 @@ import heapq
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import chain, islice
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -24,6 +25,7 @@ from sqlalchemy.sql.elements import ColumnElement
 
 from plantcheck.core.samples import Sample
 from plantcheck.storage.database import make_engine, require_migrated
+from plantcheck.storage.errors import StorageError
 from plantcheck.storage.schema import loops, samples, sources, tags
 from plantcheck.storage.window import HELD, LoopWindow, align
 
@@ -142,6 +144,18 @@ def signal_range(
     return tag_sig, cond
 
 
+def missing_sqlite_file(url: str, config_hint: str = "") -> None:
+    """``StorageError`` naming the fix when ``url`` is a SQLite file that does not exist."""
+    if not url.startswith("sqlite"):
+        return
+    db = url.split("///", 1)[-1]
+    if db and db != ":memory:" and not db.startswith("file:") and not Path(db).exists():
+        cfg = f" --config {config_hint}" if config_hint else ""
+        raise StorageError(
+            f"the database {db} does not exist: create it with `plantcheck db upgrade{cfg}`"
+        )
+
+
 Cursor = tuple[int, int]
 """Keyset position of a page of rows ordered by (time, tag id): the last row's pair."""
 
@@ -158,7 +172,11 @@ class Store:
 
     @classmethod
     async def open(cls, url: str, *, check: bool = True, config_hint: str = "") -> Store:
-        """Connect; with ``check``, refuse an unmigrated database (``StorageError``)."""
+        """Connect; with ``check``, refuse an unmigrated database (``StorageError``). A SQLite
+        file that does not exist is refused before connecting, which would leave an empty one
+        behind (issue 47: a failed ``import`` made one)."""
+        if check:
+            missing_sqlite_file(url, config_hint)
         store = cls(make_engine(url))
         if check:
             try:

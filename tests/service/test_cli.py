@@ -25,6 +25,26 @@ def test_version_and_help(run_cli: RunCli) -> None:
         assert h.returncode == 0 and "Usage" in h.stdout
 
 
+def test_help_says_it_whole_and_every_reference_resolves(run_cli: RunCli) -> None:
+    """Issue 47: summaries cut off with "...", no default shown for --speed, "about 2 minutes"
+    where the README says one, and "contracts §2" that no file in the repository holds."""
+    import re
+
+    top = run_cli("--help").stdout
+    assert "..." not in top.split("Commands:")[1], top
+    sim_help = " ".join(run_cli("simulate", "--help").stdout.split())
+    assert "clock.speed (1 in the bundled scenario)" in sim_help, sim_help
+    assert "about a minute" in " ".join(run_cli("demo", "--help").stdout.split())
+    root = Path(__file__).resolve().parents[2]
+    contracts = (root / "docs" / "contracts.md").read_text(encoding="utf-8")
+    sections = set(re.findall(r"^## (\d+)\.", contracts, re.M))
+    texts = [(root / "README.md").read_text(encoding="utf-8")]
+    texts += [f.read_text(encoding="utf-8") for f in (root / "service").glob("cli*.py")]
+    cited = {n for t in texts for n in re.findall(r"contracts(?:\.md)? §(\d+)", t)}
+    assert cited and cited <= sections, (cited, sections)
+    assert not any(re.search(r"(?<![/\w.])contracts §", t) for t in texts)
+
+
 def test_diagnose_json_contract(run_cli: RunCli) -> None:
     proc = run_cli("diagnose", str(EXAMPLE), "--loop-type", "flow", "--json")
     assert proc.returncode == 0, proc.stderr

@@ -102,6 +102,7 @@ def test_db_upgrade_and_import_cli(tmp_path: Path, run_cli) -> None:  # type: ig
     )
     r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
     assert r.returncode == 2 and f"plantcheck db upgrade --config {cfg}`" in r.stderr, r.stderr
+    assert not (tmp_path / "p.db").exists()  # a refused import leaves no empty database
     # the ids the configuration would refuse are refused here too, before anything is read
     for bad_id in ("L 1", "FIC/101", "x" * 65, ""):
         r = run_cli("import", str(rec), "--loop", bad_id, "--config", str(cfg))
@@ -111,9 +112,9 @@ def test_db_upgrade_and_import_cli(tmp_path: Path, run_cli) -> None:  # type: ig
     assert run_cli("db", "upgrade", "--config", str(cfg)).returncode == 0
     r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
     assert r.returncode == 0, r.stderr
-    assert "imported 9 samples" in r.stdout
+    assert "9 samples of loop L1 (3 time points), 9 new, 0 already stored" in r.stdout
     r = run_cli("import", str(rec), "--loop", "L1", "--config", str(cfg))
-    assert r.returncode == 0
+    assert r.returncode == 0 and "0 new, 9 already stored" in r.stdout, r.stdout
 
     async def check() -> None:
         store = await Store.open(f"sqlite+aiosqlite:///{tmp_path / 'p.db'}")
