@@ -36,6 +36,10 @@ from plantcheck.core.status_codes import BAD_DATA_ENCODING_INVALID, is_bad
 log = logging.getLogger("plantcheck.connectors")
 
 
+SESSION_TIMEOUT_MS = 600_000
+"""Session timeout asked of the server (ms)."""
+
+
 def _us(t: datetime | None) -> int | None:
     return None if t is None else round(t.timestamp() * 1e6)
 
@@ -121,6 +125,9 @@ class OpcUaConnector(DeviceConnector):
     async def connect(self) -> None:
         # the session is ours: a loss ends it and run() builds a new one (module docstring)
         client = Client(self.url, timeout=self.timeout_s, auto_reconnect=False)
+        # 10 minutes, what servers commonly grant (asyncua asks an hour, and warns at every
+        # connection when the server revises it down)
+        client.session_timeout = SESSION_TIMEOUT_MS
         client.connection_lost_callback = self._lost
         self._lost_exc = None
         try:

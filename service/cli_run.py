@@ -288,6 +288,9 @@ def demo_cmd(
                 sys.executable,
                 "-m",
                 "plantcheck.service.cli",
+                # the demo's own terminal shows plantcheck's progress, not asyncua's notices
+                "--log-level",
+                "error",
                 "simulate",
                 "--opcua",
                 opcua_url,
@@ -308,7 +311,7 @@ def demo_cmd(
             f"{cfg_path}; open http://127.0.0.1:{port}/",
             err=True,
         )
-        _serve(cfg, f" --config {cfg_path}", 10.0, duration)
+        _serve(cfg, str(cfg_path), 10.0, duration)
 
 
 def _wait_for_port(proc: subprocess.Popen[bytes], port: int, timeout_s: float = 60.0) -> None:

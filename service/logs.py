@@ -12,7 +12,7 @@ import json
 import logging
 import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import click
 
@@ -93,9 +93,20 @@ def configure_logging(level: str, fmt: Literal["plain", "json"] = "plain") -> No
         logging.getLogger(name).setLevel(max(library_level, root.level))
 
 
+def _current_context() -> click.Context | None:
+    """The running command's context: typer 0.2x runs its own copy of click, whose context
+    stack ``click.get_current_context`` does not see (the root options were then ignored)."""
+    try:
+        from typer._click.globals import get_current_context
+    except ImportError:  # a typer that runs the installed click
+        return click.get_current_context(silent=True)
+    ctx: Any = get_current_context(silent=True)
+    return ctx if ctx is not None else click.get_current_context(silent=True)
+
+
 def configure_for_command(default_level: str) -> None:
     """Logging for the running command: the root command's options, else ``default_level``."""
-    ctx = click.get_current_context(silent=True)
+    ctx = _current_context()
     opts = ctx.find_root().obj if ctx is not None else None
     if not isinstance(opts, LogOptions):
         opts = LogOptions()

@@ -115,7 +115,9 @@ class OpcUaPlantServer:
         self._nodes: list[list[ua.NodeId | None]] = []
 
     async def start(self) -> None:
-        logging.getLogger("asyncua").setLevel(logging.WARNING)
+        # asyncua's INFO is a line per publish; never lower what the command asked for
+        lib = logging.getLogger("asyncua")
+        lib.setLevel(max(lib.getEffectiveLevel(), logging.WARNING))
         spec = self.spec
         users = OneUser(spec.username, spec.password) if spec.username else None
         server = Server(user_manager=users)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+from pathlib import Path
 
 import pytest
 from helpers import RunCli
@@ -60,3 +61,31 @@ def test_a_library_error_is_one_line_without_its_traceback(
     err = capsys.readouterr().err
     assert "Publish iteration crashed (ConnectionError: Connection is closed)" in err
     assert err.count("Traceback") == 1 and err.index("Traceback") > err.index("a bug of ours")
+
+
+def test_the_root_options_reach_the_command(tmp_path: Path) -> None:
+    """``--log-level error`` quiets the simulator's asyncua notices (issue 47: typer's own copy
+    of click hid the root options from the commands, which logged at their default)."""
+    import subprocess
+    import sys
+
+    from helpers import free_port
+
+    def stderr_of(*root: str) -> str:
+        url = f"opc.tcp://127.0.0.1:{free_port()}/x/"
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "plantcheck.service.cli", *root, "simulate", "--opcua", url,
+             "--modbus", "off", "--admin", "off", "--quiet"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        assert proc.stderr is not None
+        seen = ""
+        while "plantcheck simulator" not in seen:  # its banner, once it serves
+            line = proc.stderr.readline()
+            assert line, seen
+            seen += line
+        proc.terminate()
+        return seen + proc.communicate(timeout=30)[1]
+
+    assert "WARNING asyncua" in stderr_of()
+    assert "WARNING" not in stderr_of("--log-level", "error")
