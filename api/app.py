@@ -13,8 +13,10 @@ from contextlib import AbstractAsyncContextManager
 from pathlib import Path
 
 from fastapi import FastAPI, Request
-from fastapi.responses import JSONResponse
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
+from swagger_ui_bundle import swagger_ui_path
 
 from plantcheck import __version__
 from plantcheck.api import health, reports, routes, web
@@ -42,6 +44,10 @@ def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
         version=__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        # the interactive docs from this service's own files (a plant network has no internet):
+        # Swagger UI from the swagger-ui-bundle package; ReDoc has no such package, so none
+        docs_url=None,
+        redoc_url=None,
     )
     app.state.api_config = api_config
     app.state.started = time.time()
@@ -53,6 +59,20 @@ def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
     app.include_router(health.router)
     app.include_router(web.router)
     app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")
+    app.mount("/docs-assets", StaticFiles(directory=swagger_ui_path), name="docs-assets")
+
+    @app.get("/docs", include_in_schema=False)
+    async def swagger_ui(request: Request) -> HTMLResponse:
+        """Swagger UI, every asset served here; links root-relative, never from Host."""
+        root = request.scope.get("root_path", "")
+        return get_swagger_ui_html(
+            openapi_url=f"{root}/openapi.json",
+            title="plantcheck API",
+            swagger_js_url=f"{root}/docs-assets/swagger-ui-bundle.js",
+            swagger_css_url=f"{root}/docs-assets/swagger-ui.css",
+            swagger_favicon_url=f"{root}/docs-assets/favicon-32x32.png",
+        )
+
     for exc_type in store_outage_errors():
         app.add_exception_handler(exc_type, _store_unavailable)
     return app

@@ -1,7 +1,7 @@
 """Gates in front of every route, as pure ASGI middleware (issue 45).
 
 ``ReadKeyGate``: with ``require_key_for_reads`` every request needs the key, whatever serves it
-(the routes, the OpenAPI document, ``/docs``, ``/redoc``, ``/static``), except the probes
+(the routes, the OpenAPI document, ``/docs`` and its assets, ``/static``), except the probes
 ``/healthz`` and ``/readyz``; ``/metrics`` follows its own setting (``metrics_access``: open,
 key, off), since its labels name every loop and its state.
 

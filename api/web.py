@@ -14,6 +14,7 @@ import numpy as np
 from fastapi import APIRouter, Depends, Request
 from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
+from jinja2 import pass_context
 
 from plantcheck import __version__
 from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
@@ -25,6 +26,17 @@ HERE = Path(__file__).parent
 templates = Jinja2Templates(directory=HERE / "templates")
 templates.env.globals["version"] = __version__
 templates.env.filters["iso"] = iso
+
+
+@pass_context
+def _url_for(context: dict[str, Any], name: str, /, **params: Any) -> str:
+    """A root-relative link: built from the route, never from the request's Host header (a
+    spoofed Host would otherwise choose where the page's scripts come from)."""
+    request: Request = context["request"]
+    return str(request.scope.get("root_path", "")) + str(request.app.url_path_for(name, **params))
+
+
+templates.env.globals["url_for"] = _url_for
 
 router = APIRouter(dependencies=[Depends(require_read_key)], include_in_schema=False)
 

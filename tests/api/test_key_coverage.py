@@ -1,5 +1,5 @@
 """``require_key_for_reads`` covers every route but the probes (issue 45): each path of the
-OpenAPI document, the document itself, ``/docs``, ``/redoc``, ``/static`` and the pages answer
+OpenAPI document, the document itself, ``/docs`` and its assets, ``/static`` and the pages answer
 401 without the key and serve with it; ``/metrics`` follows its own setting. The app over a real
 SQLite store, through its ASGI interface."""
 
@@ -20,8 +20,8 @@ from plantcheck.storage.database import upgrade
 
 KEY = "a-long-secret"
 PROBES = {"/healthz", "/readyz"}
-NOT_IN_SCHEMA = ["/openapi.json", "/docs", "/redoc", "/static/app.js", "/", "/loop/FIC1",
-                 "/actions", "/stiction"]  # fmt: skip
+NOT_IN_SCHEMA = ["/openapi.json", "/docs", "/docs-assets/swagger-ui.css", "/static/app.js", "/",
+                 "/loop/FIC1", "/actions", "/stiction"]  # fmt: skip
 
 
 def _app_config(tmp_path: Path, **api: Any) -> Config:
@@ -60,6 +60,7 @@ def test_every_read_needs_the_key_but_the_probes(tmp_path: Path) -> None:
     with_key = asyncio.run(_statuses(cfg, paths, KEY))
     assert not [p for p, code in with_key.items() if code in (401, 403) or code >= 500], with_key
     wrong = asyncio.run(_statuses(cfg, ["/api/v1/loops", "/docs"], "not-the-key"))
+    assert asyncio.run(_statuses(cfg, ["/redoc"], KEY))["/redoc"] == 404  # no CDN page
     assert set(wrong.values()) == {401}
 
 

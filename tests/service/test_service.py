@@ -274,8 +274,9 @@ def _chromium() -> str | None:
     return None
 
 
-def dump_dom(url: str, profile: Path) -> str:
-    """The DOM after the page's scripts ran, from headless Chromium."""
+def dump_dom(url: str, profile: Path, offline: bool = False) -> str:
+    """The DOM after the page's scripts ran, from headless Chromium; ``offline``: every host
+    but loopback fails to resolve, as on a plant network without internet."""
     exe = _chromium()
     if exe is None:
         pytest.skip("Chromium is not installed (make test installs Debian's chromium as root)")
@@ -292,6 +293,7 @@ def dump_dom(url: str, profile: Path) -> str:
             "--disable-sync",
             f"--user-data-dir={profile}",
             "--virtual-time-budget=5000",
+            *(["--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1"] if offline else []),
             "--dump-dom",
             url,
         ],
@@ -347,3 +349,15 @@ def test_port_in_use_refused_with_the_fix(tmp_path: Path, run_cli: RunCli) -> No
         r = run_cli("run", "--config", str(cfg), "--migrate")
         assert r.returncode == 2
         assert f"127.0.0.1:{port}" in r.stderr and "--port" in r.stderr
+
+
+def test_docs_render_without_internet_and_links_ignore_the_host(
+    service: Service, tmp_path: Path
+) -> None:
+    """Issue 47: /docs was blank without internet (Swagger UI from a CDN), and the pages built
+    their links from the request's Host header."""
+    dom = dump_dom(f"{service.url}/docs", tmp_path / "profile", offline=True)
+    assert 'class="opblock' in dom and "/api/v1/loops" in dom, dom[-2000:]
+    for path in ("/", "/docs", "/loop/FIC101", "/actions", "/stiction"):
+        page = httpx.get(f"{service.url}{path}", headers={"Host": "cpm.plant.example"}).text
+        assert "cpm.plant.example" not in page, path
