@@ -72,6 +72,8 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
     """One loop: state, latest diagnosis, SP/PV/OP(/MV) trends over its last window, PV(OP)."""
     row = await get_loop(backend, loop_id)
     status = (await loop_statuses(backend.store, loop_id))[0]
+    # the action as the actions page shows it: one text, one since (issue 47)
+    action = next((a for a in await active_actions(backend.store) if a["loop"] == loop_id), None)
     _, hist = await diagnosis_history(backend.store, row, limit=20)
     latest = hist[0] if hist else None
     if latest is not None:
@@ -95,6 +97,7 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
         "loop.html",
         {
             "loop": status,
+            "action": action,
             "diagnosis": latest["payload"] if latest else None,
             "history": hist,
             "plot": plot,

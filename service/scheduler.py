@@ -42,16 +42,19 @@ from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
 from plantcheck.service.worker_lifetime import die_with_parent
-from plantcheck.storage.results import PendingVerdict, Verdict, loop_states, recent_history
+from plantcheck.storage.results import (
+    QUANTIFIED_CAUSES,
+    PendingVerdict,
+    Verdict,
+    loop_states,
+    recent_history,
+)
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.verdict_writer import VerdictWriter
 from plantcheck.storage.window import HELD
 from plantcheck.storage.window_cache import WindowCache
 
 log = logging.getLogger("plantcheck.scheduler")
-
-QUANTIFIED_CAUSES = frozenset({"stiction", "deadband_backlash"})
-"""Causes whose diagnosis carries an S (and J) estimate for the stiction report."""
 
 
 def stored_estimate(payload: dict[str, Any]) -> tuple[float, float | None, str, bool] | None:

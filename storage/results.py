@@ -67,6 +67,11 @@ class LoopStatus:
     S_method: str | None = None
 
 
+QUANTIFIED_CAUSES = frozenset({"stiction", "deadband_backlash"})
+"""Causes whose diagnosis carries an S (and J) estimate (the stiction report), and whose action
+text then names it."""
+
+
 @dataclass(frozen=True)
 class PendingVerdict:
     """A verdict to store: with ``adopt`` (or when the loop has none yet) a new cause becomes
@@ -127,17 +132,24 @@ async def record_verdicts(store: Store, batch: Sequence[PendingVerdict]) -> list
                 .values(last_diagnosis_us=bindparam("b_at")),
                 [{"b_id": v.loop.id, "b_at": v.created_us} for v in same],
             )
-            # same verdict: keep the action and its ``since``, refresh its text (e.g. a new S)
-            await conn.execute(
-                update(actions)
-                .where(
-                    actions.c.loop_id == bindparam("b_id"),
-                    actions.c.active.is_(True),
-                    actions.c.cause == bindparam("b_cause"),
+            # same verdict: keep the action and its ``since``, refresh its text when it brings
+            # news (a new S); a window not quantified keeps the numbers the text already has,
+            # so every page shows one text with the numbers known (issue 47)
+            news = [v for v in same if v.S is not None or v.cause not in QUANTIFIED_CAUSES]
+            if news:
+                await conn.execute(
+                    update(actions)
+                    .where(
+                        actions.c.loop_id == bindparam("b_id"),
+                        actions.c.active.is_(True),
+                        actions.c.cause == bindparam("b_cause"),
+                    )
+                    .values(text=bindparam("b_text")),
+                    [
+                        {"b_id": v.loop.id, "b_cause": v.cause, "b_text": v.action_text}
+                        for v in news
+                    ],
                 )
-                .values(text=bindparam("b_text")),
-                [{"b_id": v.loop.id, "b_cause": v.cause, "b_text": v.action_text} for v in same],
-            )
         if new:
             await _adopt(conn, new)
         estimates = [p.verdict for p in batch if p.verdict.S is not None]
@@ -191,21 +203,22 @@ async def _adopt(conn: AsyncConnection, batch: Sequence[PendingVerdict]) -> None
         .values(active=False, closed_us=bindparam("b_at")),
         [{"b_id": p.verdict.loop.id, "b_at": p.verdict.created_us} for p in batch],
     )
-    opened = [p.verdict for p in batch if p.verdict.action_code != "none"]
+    opened = [p for p in batch if p.verdict.action_code != "none"]
     if opened:
         await conn.execute(
             insert(actions),
             [
                 {
-                    "loop_id": v.loop.id,
-                    "cause": v.cause,
-                    "code": v.action_code,
-                    "text": v.action_text,
-                    "priority": v.priority,
-                    "since_us": v.created_us,
+                    "loop_id": p.verdict.loop.id,
+                    "cause": p.verdict.cause,
+                    "code": p.verdict.action_code,
+                    "text": p.verdict.action_text,
+                    "priority": p.verdict.priority,
+                    # the loop's since: one change, one time on every page (issue 47)
+                    "since_us": p.since_us or p.verdict.created_us,
                     "active": True,
                 }
-                for v in opened
+                for p in opened
             ],
         )
 

@@ -152,7 +152,7 @@ def missing_sqlite_file(url: str, config_hint: str = "") -> None:
     if db and db != ":memory:" and not db.startswith("file:") and not Path(db).exists():
         cfg = f" --config {config_hint}" if config_hint else ""
         raise StorageError(
-            f"the database {db} does not exist: create it with `plantcheck db upgrade{cfg}`"
+            f"the database {db} does not exist: run `plantcheck db upgrade{cfg}` to create it"
         )
 
 

@@ -366,7 +366,9 @@ class SampleWriter:
     async def _housekeeping(self) -> None:
         """The hourly housekeeping beside the commits, on its own connections: a slice of
         tags at a time with a pause between slices, so that commits never wait for it."""
-        last = 0.0
+        # the first round at start, whatever the machine's uptime (``last = 0.0`` made it run at
+        # start only on a machine up for more than ``purge_every_s``)
+        last = -float("inf")
         while not self._stop.is_set():
             if time.monotonic() - last > self.purge_every_s and self.stats.store_up:
                 last = time.monotonic()

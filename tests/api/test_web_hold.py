@@ -24,7 +24,8 @@ def _config(url: str) -> Config:
     loop = {"sp": "SP", "pv": "PV", "op": "OP", "mv": "MV"}
     return Config.model_validate(
         {
-            "storage": {"url": url},
+            # the buffer in the test's folder, never in the working folder
+            "storage": {"url": url, "buffer_path": str(Path(url.split("///")[1]).parent / "b.db")},
             "source": [
                 {"name": "ua", "protocol": "opcua", "url": "opc.tcp://127.0.0.1:4840/"},
                 {"name": "plc", "protocol": "modbus", "port": 5020},

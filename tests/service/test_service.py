@@ -344,7 +344,9 @@ def test_port_in_use_refused_with_the_fix(tmp_path: Path, run_cli: RunCli) -> No
         cfg = tmp_path / "plantcheck.toml"
         db = tmp_path / "x.db"
         cfg.write_text(
-            f'[storage]\nurl = "sqlite+aiosqlite:///{db}"\n[api]\nport = {port}\n', encoding="utf-8"
+            f'[storage]\nurl = "sqlite+aiosqlite:///{db}"\nbuffer_path = "{tmp_path / "b.db"}"\n'
+            f"[api]\nport = {port}\n",
+            encoding="utf-8",
         )
         r = run_cli("run", "--config", str(cfg), "--migrate")
         assert r.returncode == 2
@@ -361,3 +363,23 @@ def test_docs_render_without_internet_and_links_ignore_the_host(
     for path in ("/", "/docs", "/loop/FIC101", "/actions", "/stiction"):
         page = httpx.get(f"{service.url}{path}", headers={"Host": "cpm.plant.example"}).text
         assert "cpm.plant.example" not in page, path
+
+
+def test_one_truth_per_loop_on_every_page(service: Service) -> None:
+    """Issue 47: the table said S 3.00 where the loop page said "detected, not quantified", the
+    loop and actions pages gave different action texts, and their "since" differed."""
+    import html as html_
+
+    loops = {lp["id"]: lp for lp in httpx.get(f"{service.url}/api/v1/loops").json()}
+    acts = {a["loop"]: a for a in httpx.get(f"{service.url}/api/v1/actions").json()}
+    actions_page = httpx.get(f"{service.url}/actions").text
+    assert acts
+    for loop_id, act in acts.items():
+        assert act["since"] == loops[loop_id]["since"], (loop_id, act, loops[loop_id])
+        page = httpx.get(f"{service.url}/loop/{loop_id}").text
+        text = html_.escape(act["action"])
+        assert text in page and text in actions_page, loop_id
+        S = loops[loop_id]["S"]
+        if S is not None:
+            assert f"S = {S:.2f} %" in page and "not quantified" not in page, loop_id
+        assert not re.search(r"period \d+\.\d{2,} s|amplitude \d+\.\d{3,}", page), loop_id
