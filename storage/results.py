@@ -333,8 +333,10 @@ async def count_estimates(
     store: Store, start_us: int | None = None, end_us: int | None = None
 ) -> int:
     """Stiction estimates stored in [start, end) (what a report over that span would read)."""
-    q = select(func.count()).select_from(stiction_estimates).where(
-        *_between(stiction_estimates.c.at_us, start_us, end_us)
+    q = (
+        select(func.count())
+        .select_from(stiction_estimates)
+        .where(*_between(stiction_estimates.c.at_us, start_us, end_us))
     )
     async with store.engine.connect() as conn:
         return int((await conn.execute(q)).scalar_one())
