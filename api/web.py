@@ -7,6 +7,7 @@ network without internet access. Pages need the API key exactly when reads do.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -51,6 +52,28 @@ def _page(request: Request, backend: Backend, name: str, context: dict[str, Any]
     return templates.TemplateResponse(request, name, {**context, "sources_down": down})
 
 
+CLOCK_TOLERANCE_S = 300.0
+"""Plant time this far from the server's clock is said on the loop page (s)."""
+
+
+def plant_clock_note(newest_us: int | None, now_us: int) -> str:
+    """A sentence when the loop's newest sample is far from this server's clock: its trends and
+    history run in plant time (the source's timestamps), which then is not the wall clock of
+    the "since" columns (issue 47: the demo's simulated plant ran hours ahead)."""
+    if newest_us is None:
+        return ""
+    ahead_s = (newest_us - now_us) / 1e6
+    if abs(ahead_s) < CLOCK_TOLERANCE_S:
+        return ""
+    h = abs(ahead_s) / 3600
+    span = f"{h:.1f} h" if h >= 1 else f"{abs(ahead_s) / 60:.0f} min"
+    way = "ahead of" if ahead_s > 0 else "behind"
+    return (
+        f"Plant time (the source's timestamps, shown in the trends and the history) runs {span} "
+        f"{way} this server's clock: a simulator, a replay or a plant clock that is off."
+    )
+
+
 def _series(x: np.ndarray) -> list[float | None]:
     return [None if not np.isfinite(v) else round(float(v), 4) for v in x]
 
@@ -86,6 +109,7 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
     win = await backend.store.read_window(
         row, start, end, hold=backend.held_signals.get(loop_id, HELD)
     )
+    newest = await backend.store.latest_sample_us(row)
     stride = max(1, int(np.ceil(win.t_us.size / MAX_POINTS)))
     plot: dict[str, Any] = {"t": (win.t_us[::stride] / 1e6).round(3).tolist()}
     for sig in ("sp", "pv", "op", "mv"):
@@ -101,6 +125,7 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
             "diagnosis": latest["payload"] if latest else None,
             "history": hist,
             "plot": plot,
+            "clock_note": plant_clock_note(newest, time.time_ns() // 1000),
             "title": f"Loop {loop_id}",
         },
     )

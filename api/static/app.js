@@ -54,6 +54,14 @@ const plantcheck = (() => {
     setTimeout(() => location.reload(), seconds * 1000);
   }
 
+  /* Every axis and legend in UTC, 24-hour, as the tables (issue 47: the charts were in the
+     browser's local 12-hour time). */
+  const UTC = {
+    tzDate: (ts) => uPlot.tzDate(new Date(ts * 1e3), "Etc/UTC"),
+    fmtDate: (tpl) => uPlot.fmtDate(tpl.replace(/\{h\}/g, "{HH}").replace(/\s*\{aa?\}/g, "")
+      .replace("{M}/{D}/{YY}", "{YYYY}-{MM}-{DD}").replace("{M}/{D}", "{MM}-{DD}")),
+  };
+
   function width(el) {
     return Math.max(320, Math.min(1100, (el.parentElement || document.body).clientWidth - 20));
   }
@@ -66,10 +74,13 @@ const plantcheck = (() => {
       return null;
     }
     const opts = {
-      title: title, width: width(el), height: 260,
+      ...UTC,
+      title: title + " (UTC)", width: width(el), height: 260,
       scales: { x: { time: true } },
       series: [{}].concat(present.map((s) => ({ label: LABELS[s], stroke: COLORS[s], width: 1.2 }))),
     };
+    // the x axis' tick labels as drawn, for the page's tests (uPlot draws them on a canvas)
+    opts.hooks = { draw: [(u) => { el.dataset.xLabels = (u.axes[0]._values || []).join("|"); }] };
     const u = new uPlot(opts, [data.t].concat(present.map((s) => data[s])), el);
     el.dataset.rendered = "true";
     el.dataset.points = String(data.t.length);
@@ -112,16 +123,26 @@ const plantcheck = (() => {
     if (!est.length) return null;
     const cross = v.projected_crossing ? Date.parse(v.projected_crossing) / 1000 : null;
     const t = est.map((e) => e[0]);
-    if (cross !== null && cross > t[t.length - 1]) t.push(cross);
+    // the axis spans the estimates and a quarter of that (at least a day) ahead: a crossing
+    // projected years away is drawn as the trend toward it, not as a years-long axis
+    const last = t[t.length - 1];
+    const horizon = last + Math.max(86400, 0.25 * (last - t[0]));
+    let projS = null;
+    if (cross !== null && cross > last && cross <= horizon) {
+      t.push(cross); projS = v.limit;
+    } else if (v.slope_per_week !== null && v.current_S !== null && v.slope_per_week > 0) {
+      t.push(horizon); projS = v.current_S + v.slope_per_week * (horizon - last) / 604800;
+    }
     const S = t.map((_, i) => (i < est.length && est[i][2] ? est[i][1] : null));
     const other = t.map((_, i) => (i < est.length && !est[i][2] ? est[i][1] : null));
     const limit = t.map(() => v.limit);
     const proj = t.map(() => null);
-    if (cross !== null && t.length > est.length) {
-      proj[est.length - 1] = v.current_S; proj[t.length - 1] = v.limit;
+    if (projS !== null && t.length > est.length) {
+      proj[est.length - 1] = v.current_S; proj[t.length - 1] = projS;
     }
     const u = new uPlot({
-      title: `${v.loop}: S (% of travel)`, width: width(el), height: 220,
+      ...UTC,
+      title: `${v.loop}: S (% of travel), UTC`, width: width(el), height: 220,
       scales: { x: { time: true } },
       series: [{},
         { label: `S (${v.trend_method || "none"})`, stroke: "#c62828", width: 0, paths: () => null, points: { show: true, size: 6, fill: "#c62828" } },

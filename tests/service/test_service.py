@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 import re
 import shutil
 import subprocess
 import time
-from datetime import timedelta
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import httpx
@@ -274,7 +275,7 @@ def _chromium() -> str | None:
     return None
 
 
-def dump_dom(url: str, profile: Path, offline: bool = False) -> str:
+def dump_dom(url: str, profile: Path, offline: bool = False, tz: str | None = None) -> str:
     """The DOM after the page's scripts ran, from headless Chromium; ``offline``: every host
     but loopback fails to resolve, as on a plant network without internet."""
     exe = _chromium()
@@ -301,6 +302,7 @@ def dump_dom(url: str, profile: Path, offline: bool = False) -> str:
         text=True,
         timeout=120,
         check=True,
+        env={**os.environ, "TZ": tz} if tz else None,
     )
     return out.stdout
 
@@ -383,3 +385,22 @@ def test_one_truth_per_loop_on_every_page(service: Service) -> None:
         if S is not None:
             assert f"S = {S:.2f} %" in page and "not quantified" not in page, loop_id
         assert not re.search(r"period \d+\.\d{2,} s|amplitude \d+\.\d{3,}", page), loop_id
+
+
+def test_charts_are_in_utc_whatever_the_browser_zone(service: Service, tmp_path: Path) -> None:
+    """Issue 47: the tables said UTC and the charts drew the browser's local 12-hour time."""
+    detail = httpx.get(f"{service.url}/api/v1/loops/FIC101").json()
+    start = datetime.fromisoformat(detail["window_start"].replace("Z", "+00:00"))
+    end = datetime.fromisoformat(detail["window_end"].replace("Z", "+00:00"))
+    hours = {
+        f"{(start + timedelta(hours=h)).hour:02d}:"
+        for h in range(int((end - start).total_seconds() // 3600) + 2)
+    }
+    dom = dump_dom(f"{service.url}/loop/FIC101", tmp_path / "profile", tz="Asia/Kolkata")
+    m = re.search(r'id="trend-pv"[^>]*data-x-labels="([^"]*)"', dom) or re.search(
+        r'data-x-labels="([^"]*)"[^>]*id="trend-pv"', dom
+    )
+    assert m, dom[:3000]
+    labels = [x for x in m.group(1).split("|") if x]
+    assert labels and not any(re.search(r"am|pm", x, re.I) for x in labels), labels
+    assert any(x.strip()[:3] in hours or x.strip()[-5:-2] in hours for x in labels), (labels, hours)
