@@ -140,9 +140,13 @@ class DeviceConnector(ABC):
             self._delay = self.backoff_initial_s
         self.sink(rows)
 
+    def gap_time_us(self) -> int:
+        """When an outage begins, on the samples' time axis (the receiver's clock here)."""
+        return now_us()
+
     def mark_gap(self) -> None:
         """Store a gap marker for every tag: Bad (no communication), no value."""
-        t = now_us()
+        t = self.gap_time_us()
         self.sink([Sample(tid, t, t, None, BAD_NO_COMMUNICATION) for tid in self.tag_ids])
         self._gap_us = t
         self._after_gap = set(self.tag_ids)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-from plantcheck.connectors.base import DeviceConnector, SampleSink
+from plantcheck.connectors.base import DeviceConnector, SampleSink, now_us
 from plantcheck.connectors.modbus_codec import WIDTH, DataType, Order, decode
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import (
@@ -34,6 +34,8 @@ from plantcheck.core.status_codes import (
 )
 
 MAX_BLOCK = 125
+CLOCK_TAG = -1
+"""Tag id of the source's clock register: read with the values, never stored."""
 
 
 @dataclass(frozen=True)
@@ -123,10 +125,19 @@ class ModbusConnector(DeviceConnector):
         poll_interval_s: float = 1.0,
         timeout_s: float = 2.0,
         held: Collection[int] = (),
+        clock: str = "",
         **kw: float,
     ) -> None:
         super().__init__(name, sink, [t.tag_id for t in tags], held=held, **kw)
-        self.blocks = plan_blocks(tags)
+        self.clock = ModbusTag.parse(CLOCK_TAG, clock) if clock else None
+        """The device's clock register (POSIX seconds): it stamps the values read with it.
+        Modbus carries no time, so without it a value is stamped when polled, which is plant
+        time only for a plant that runs in real time (not an accelerated simulator)."""
+        blocks = plan_blocks([*tags, self.clock] if self.clock else tags)
+        # the clock's block first: its time stamps the blocks read after it in the same poll
+        self.blocks = sorted(blocks, key=lambda b: not any(t.tag_id == CLOCK_TAG for t in b.tags))
+        self._clock_us: int | None = None
+        """The device clock's last reading (µs since 1970)."""
         self.host, self.port, self.device_id = host, port, device_id
         self.word_order, self.byte_order = word_order, byte_order
         self.poll_interval_s, self.timeout_s = poll_interval_s, timeout_s
@@ -134,6 +145,11 @@ class ModbusConnector(DeviceConnector):
 
     def endpoint(self) -> tuple[str, int]:
         return self.host, self.port
+
+    def gap_time_us(self) -> int:
+        """With a clock register, just after its last reading: the gap marker belongs on the
+        device's time axis, which an accelerated simulator runs ahead of the wall clock."""
+        return now_us() if self._clock_us is None else self._clock_us + 1
 
     async def connect(self) -> None:
         self.client = AsyncModbusTcpClient(
@@ -146,6 +162,7 @@ class ModbusConnector(DeviceConnector):
         """Read every block once, yielding each block's samples as it arrives (raises on
         time-out or lost connection)."""
         assert self.client is not None
+        clock_us: int | None = None
         for b in self.blocks:
             read = (
                 self.client.read_holding_registers
@@ -160,9 +177,21 @@ class ModbusConnector(DeviceConnector):
             t1 = time.time_ns()
             ts = (t0 + t1) // 2000
             if r.isError():
-                yield [Sample(t.tag_id, ts, t1 // 1000, None, BAD_DEVICE_FAILURE) for t in b.tags]
+                rows = [Sample(t.tag_id, ts, t1 // 1000, None, BAD_DEVICE_FAILURE) for t in b.tags]
             else:
-                yield decode_block(b, r.registers, ts, t1 // 1000, self.word_order, self.byte_order)
+                rows = decode_block(
+                    b, r.registers, ts, t1 // 1000, self.word_order, self.byte_order
+                )
+            if self.clock is not None:
+                clock = [x for x in rows if x.tag_id == CLOCK_TAG]
+                if clock and clock[0].value is not None and clock[0].value > 0:
+                    clock_us = self._clock_us = round(clock[0].value * 1e6)
+                rows = [
+                    x._replace(ts_us=clock_us) if clock_us is not None else x
+                    for x in rows
+                    if x.tag_id != CLOCK_TAG
+                ]
+            yield rows
 
     async def collect(self) -> None:
         period = self.poll_interval_s

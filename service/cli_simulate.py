@@ -153,6 +153,16 @@ def _serve(scenario: Scenario) -> None:
         if a.enabled:
             parts.append(f"admin {a.host}:{a.port}")
         typer.echo("plantcheck simulator: " + "; ".join(parts), err=True)
+        if m.enabled and scenario.clock.speed != 1:
+            # Modbus carries no time: a client stamps values when it polls them, which at any
+            # speed but 1 is not the plant's time, and the diagnosis reads wrong periods
+            typer.echo(
+                f"plantcheck simulator: WARNING: at {scenario.clock.speed:g}x, Modbus clients "
+                "must stamp values with the plant time in registers 0-3: set clock = "
+                '"hr:0:float64" on the [[source]] (`--export-map` writes it), or read the '
+                "plant over OPC UA (simulator README, Clock)",
+                err=True,
+            )
         await task
 
     try:

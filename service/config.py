@@ -242,6 +242,10 @@ class SourceConfig(_Strict):
     """Environment variable holding the password (read at start)."""
     password_file: str = ""
     """File holding the password (first line; e.g. a systemd credential)."""
+    clock: str = ""
+    """Modbus: the device's clock register, POSIX seconds (``"hr:0:float64"`` on the bundled
+    simulator): its value stamps the values read with it. Modbus carries no time: without it a
+    value is stamped when polled, which is plant time only for a plant that runs in real time."""
     collector: str = ""
     """Read by ``plantcheck ingest --collector NAME`` on a machine at the plant, not by
     ``plantcheck run`` (empty: the service reads it)."""
@@ -265,6 +269,19 @@ class SourceConfig(_Strict):
             self.password = SecretStr(found)
         if (self.username or found is not None) and self.protocol != "opcua":
             raise ValueError(f"source {self.name!r}: username and password are OPC UA settings")
+        return self
+
+    @model_validator(mode="after")
+    def _clock(self) -> SourceConfig:
+        if self.clock and self.protocol != "modbus":
+            raise ValueError(
+                f"source {self.name!r}: clock is a Modbus setting (OPC UA carries source times)"
+            )
+        if self.clock and not MODBUS_TAG.match(self.clock):
+            raise ValueError(
+                f"source {self.name!r}: clock {self.clock!r} is not a Modbus register "
+                "TABLE:ADDRESS:TYPE, e.g. 'hr:0:float64'"
+            )
         return self
 
     @model_validator(mode="after")

@@ -74,6 +74,7 @@ def build_connectors(
                     poll_interval_s=src.poll_interval_s,
                     timeout_s=src.timeout_s,
                     held=held,
+                    clock=src.clock,
                 )
             )
         else:

@@ -89,6 +89,8 @@ def map_toml(
             f"device_id = {m.device_id}",
             f'word_order = "{m.word_order}"',
             f'byte_order = "{m.byte_order}"',
+            # the plant's time (registers 0-3) stamps the values: right at any speed
+            'clock = "hr:0:float64"',
             "",
         ]
     if poll_interval_s is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
 
@@ -262,3 +263,40 @@ def test_a_stalled_modbus_device_is_logged_once_and_backs_off(
         assert ing.connectors[0].state.failures >= 2  # it kept trying, further apart
 
     _run(url, sc, tmp_path, "modbus", body)
+
+
+@pytest.mark.parametrize("clock", ["", "hr:0:float64"])
+def test_a_modbus_clock_register_stamps_plant_time(tmp_path: Path, clock: str) -> None:
+    """Issue 47: Modbus has no source time; an accelerated plant polled without a clock is
+    stamped with wall time (its periods read 20 times too short). With the simulator's clock
+    register (plant time, registers 0-3) the stored times advance as the plant does."""
+    url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    upgrade(url)
+    speed = 20.0
+    sc = scenario_on_free_ports(speed=speed)
+    sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"enabled": False})})
+    cfg = _config(sc, url, tmp_path / "buffer.db", "modbus")
+    cfg.source[0] = cfg.source[0].model_copy(update={"clock": clock})
+
+    async def main() -> None:
+        runner, task = await _start_plant(sc)
+        ing = await Ingestion.start(cfg)
+        try:
+            first = await _rows_until(ing, "FIC101", "pv", lambda rows: len(rows) >= 3)
+            t_wall = time.monotonic()
+            await asyncio.sleep(4.0)
+            rows = await _rows(ing, "FIC101", "pv")
+            wall_s = time.monotonic() - t_wall
+        finally:
+            await ing.stop()
+            await _stop_plant(runner, task)
+        good = [r for r in rows if r[4] == 0]
+        span_s = (good[-1][1] - first[-1][1]) / 1e6
+        if clock:  # plant time: about 20 s per second
+            assert span_s > 0.6 * speed * wall_s, (span_s, wall_s)
+            # one sample per simulated second: a value polled twice is stored once
+            assert len({r[1] for r in good}) == len(good)
+        else:  # wall time
+            assert span_s < 1.5 * wall_s, (span_s, wall_s)
+
+    asyncio.run(main())
