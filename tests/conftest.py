@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -42,6 +46,40 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 
 ROOT_BEFORE = pytest.StashKey[set[str]]()
+
+HEARTBEAT_S = float(os.environ.get("PLANTCHECK_TEST_HEARTBEAT_S", "30"))
+"""A test running longer than this says so, and again every as long (issue 47: silent stretches
+of minutes in `make test` looked like a hang)."""
+
+
+def _terminal_fd(config: pytest.Config) -> int | None:
+    """The terminal's file descriptor as it was before pytest captured fd 1 (a test's output
+    goes to a file meanwhile); written to with one ``os.write``, which needs no capture state
+    to change from the heartbeat's thread. None where pytest does not capture at the fd."""
+    capman = config.pluginmanager.get_plugin("capturemanager")
+    out = getattr(getattr(capman, "_global_capturing", None), "out", None)
+    fd = getattr(out, "targetfd_save", None)
+    return fd if isinstance(fd, int) else None
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    done = threading.Event()
+    t0 = time.monotonic()
+    terminal = _terminal_fd(item.config)
+
+    def beat() -> None:
+        while not done.wait(HEARTBEAT_S) and terminal is not None:
+            line = f"\n[{item.nodeid} still running after {time.monotonic() - t0:.0f} s]\n"
+            with contextlib.suppress(OSError):
+                os.write(terminal, line.encode())
+
+    thread = threading.Thread(target=beat, daemon=True)
+    thread.start()
+    try:
+        return (yield)
+    finally:
+        done.set()
 
 
 @pytest.fixture
