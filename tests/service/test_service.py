@@ -404,3 +404,20 @@ def test_charts_are_in_utc_whatever_the_browser_zone(service: Service, tmp_path:
     labels = [x for x in m.group(1).split("|") if x]
     assert labels and not any(re.search(r"am|pm", x, re.I) for x in labels), labels
     assert any(x.strip()[:3] in hours or x.strip()[-5:-2] in hours for x in labels), (labels, hours)
+
+
+def test_the_loop_table_is_as_fresh_as_the_diagnoses(service: Service) -> None:
+    """Issue 47: polled every 10 s, GET /loops answered with the table of the previous poll.
+    A diagnosis listed by /diagnoses before a /loops request is in that request's answer."""
+    httpx.get(f"{service.url}/api/v1/loops")  # the poller's previous visit
+    for _ in range(1):
+        time.sleep(10.0)  # a 10-s poller
+        newest = {
+            loop_id: httpx.get(
+                f"{service.url}/api/v1/loops/{loop_id}/diagnoses", params={"limit": 1}
+            ).json()[0]["created_at"]
+            for loop_id in ("FIC101", "FIC102")
+        }
+        table = {lp["id"]: lp for lp in httpx.get(f"{service.url}/api/v1/loops").json()}
+        for loop_id, created in newest.items():
+            assert table[loop_id]["last_diagnosis_at"] >= created, (loop_id, table[loop_id])
