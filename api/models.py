@@ -161,7 +161,9 @@ class StorageOut(BaseModel):
     buffer_error: str = Field(description="The most recent buffer failure, empty if none.")
     buffer_path: str
     samples_in_buffer: int
-    samples_in_memory: int = Field(description="Held while neither side takes them.")
+    samples_in_memory: int = Field(
+        description="Held in memory while the database does not take them (0 while it does)."
+    )
     memory_max_samples: int
     samples_dropped: int = Field(description="Lost since start (buffer or memory full).")
     samples_stored: int

@@ -145,8 +145,9 @@ class SampleWriter:
 
     @property
     def held(self) -> int:
-        """Samples waiting in memory."""
-        return len(self._pending)
+        """Samples held in memory because the store does not take them (0 while it does: the
+        second's batch on its way is not held)."""
+        return 0 if self.stats.store_up else len(self._pending)
 
     @property
     def housekeeping_pending(self) -> int:
@@ -162,7 +163,7 @@ class SampleWriter:
     def backlog(self) -> int:
         """Samples waiting because the store did not take them: in the durable buffer, and in
         memory while commits fail (not the second's batch on its way, issue 47)."""
-        return len(self.buffer) + (0 if self.stats.store_up else len(self._pending))
+        return len(self.buffer) + self.held
 
     @property
     def writing(self) -> bool:
