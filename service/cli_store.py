@@ -56,12 +56,12 @@ def migrate_or_fail(url: str) -> str:
     revision, or exit 2 with one line naming the database (password hidden) and the fix."""
     from sqlalchemy.engine import make_url
 
-    from plantcheck.storage.database import upgrade
+    from plantcheck.storage.database import sqlite_file, upgrade
 
-    parsed = make_url(url)
-    where = parsed.render_as_string(hide_password=True)
-    if parsed.get_backend_name() == "sqlite" and parsed.database not in (None, "", ":memory:"):
-        folder = Path(parsed.database).resolve().parent
+    where = make_url(url).render_as_string(hide_password=True)
+    db = sqlite_file(url)
+    if db is not None:
+        folder = db.resolve().parent
         if not folder.is_dir():
             raise fail(
                 f"cannot create the database {where}: the folder {folder} does not exist; "

@@ -16,6 +16,7 @@ from plantcheck.connectors.opcua_security import OpcUaSecurity
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.service.config import Config, SourceConfig
+from plantcheck.storage.database import sqlite_file
 from plantcheck.storage.source_health import report_health
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
@@ -131,13 +132,11 @@ def down_past_grace(cfg: Config, health: Sequence[SourceHealth], now_us: int) ->
 def shares_a_disk(url: str, buffer_path: Path) -> bool:
     """A SQLite database and the durable buffer on one filesystem: one full or read-only disk
     then stops both, and samples can only wait in memory (issue 45)."""
-    if not url.startswith("sqlite"):
-        return False
-    db = url.split("///", 1)[-1]
-    if not db or db == ":memory:" or str(buffer_path) == ":memory:":
+    db = sqlite_file(url)
+    if db is None or str(buffer_path) == ":memory:":
         return False
     try:
-        a = os.stat(Path(db).resolve().parent).st_dev
+        a = os.stat(db.resolve().parent).st_dev
         b = os.stat(buffer_path.resolve().parent).st_dev
     except OSError:
         return False

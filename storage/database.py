@@ -15,6 +15,7 @@ from alembic import command
 from alembic.config import Config as AlembicConfig
 from alembic.script import ScriptDirectory
 from sqlalchemy import event, text
+from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.ext.asyncio import AsyncEngine, create_async_engine
 
@@ -35,6 +36,22 @@ def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:
     # the next commit, not minutes later once a WAL kept at its largest size is used up
     cur.execute("PRAGMA journal_size_limit=0")
     cur.close()
+
+
+def sqlite_file(url: str) -> Path | None:
+    """The database file of a SQLite ``url`` (None for another database, an in-memory one or a
+    ``file:`` URI): what the checks of a missing file, a missing folder and a buffer sharing
+    the database's disk look at."""
+    parsed = make_url(url)
+    db = parsed.database
+    if (
+        parsed.get_backend_name() != "sqlite"
+        or not db
+        or db == ":memory:"
+        or db.startswith("file:")
+    ):
+        return None
+    return Path(db)
 
 
 def make_engine(url: str) -> AsyncEngine:

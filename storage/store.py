@@ -13,7 +13,6 @@ import heapq
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import chain, islice
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -24,7 +23,7 @@ from sqlalchemy.ext.asyncio import AsyncConnection, AsyncEngine
 from sqlalchemy.sql.elements import ColumnElement
 
 from plantcheck.core.samples import Sample
-from plantcheck.storage.database import make_engine, require_migrated
+from plantcheck.storage.database import make_engine, require_migrated, sqlite_file
 from plantcheck.storage.errors import StorageError
 from plantcheck.storage.schema import loops, samples, sources, tags
 from plantcheck.storage.window import HELD, LoopWindow, align
@@ -146,10 +145,8 @@ def signal_range(
 
 def missing_sqlite_file(url: str, config_hint: str = "") -> None:
     """``StorageError`` naming the fix when ``url`` is a SQLite file that does not exist."""
-    if not url.startswith("sqlite"):
-        return
-    db = url.split("///", 1)[-1]
-    if db and db != ":memory:" and not db.startswith("file:") and not Path(db).exists():
+    db = sqlite_file(url)
+    if db is not None and not db.exists():
         cfg = f" --config {config_hint}" if config_hint else ""
         raise StorageError(
             f"the database {db} does not exist: run `plantcheck db upgrade{cfg}` to create it"
@@ -381,7 +378,7 @@ class Store:
         skip: int = 0,
     ) -> list[tuple[str, int, int, float | None, int]]:
         """(signal, ts_us, recv_us, value, status) of a loop in [start, end), oldest first
-        (ties by tag id); with ``limit``, one bounded page (``page_per_tag``) after the keyset
+        (ties by tag id); with ``limit``, one bounded page (``page``) after the keyset
         ``after`` = (ts_us, tag id) with ``skip`` rows left out."""
         tag_sig, cond = signal_range(
             loop, signals, samples.c.tag_id, samples.c.ts_us, start_us, end_us
