@@ -13,7 +13,7 @@ STAMP  := $(VENV)/.plantcheck-dev
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[dev]"
+	$(BIN)/pip install --quiet -e ".[dev,fit]"
 	touch $@
 
 venv: $(STAMP)

@@ -106,6 +106,14 @@ class ActionJSON(_Part):
     text: str
 
 
+class EvidenceJSON(_Part):
+    """One input of the learned decision and what it contributed to the cause's raw score."""
+
+    name: str
+    value: float | None
+    contribution: float
+
+
 class DiagnosisJSON(_Part):
     """One loop diagnosis (contracts §2)."""
 
@@ -124,3 +132,7 @@ class DiagnosisJSON(_Part):
     indices: dict[str, int | float | None] = {}
     actions: list[ActionJSON] = []
     notes: list[str] = []
+    probabilities: dict[str, float] | None = None
+    """Each cause's calibrated probability (the learned model, issue 46)."""
+    evidence: list[EvidenceJSON] | None = None
+    """The inputs that moved the decision most, largest contribution first."""

@@ -16,8 +16,10 @@ import numpy as np
 
 from plantcheck.diagnosis.acf_decay import acf_decay_ratio
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
+from plantcheck.diagnosis.cause_model import CauseModel, decide, shipped_cause_model
 from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
 from plantcheck.diagnosis.ellipse import apparent_stiction
+from plantcheck.diagnosis.evidence import evidence_vector, window_evidence
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
 from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
 from plantcheck.diagnosis.oscillation import (
@@ -95,6 +97,11 @@ class ChainParams:
     quantification: QuantificationParams = field(default_factory=QuantificationParams)
     valve: ValveParams = field(default_factory=ValveParams)
     stick_slip: StickSlipParams = field(default_factory=StickSlipParams)
+    cause_model: CauseModel | None = field(default_factory=shipped_cause_model, compare=False)
+    """The learned model over the tests' evidence (issue 46); None: no probabilities."""
+    decide_by: str = "rules"
+    """``rules``: the chain's rules give the cause, the model its probability; ``learned``:
+    the model's most probable cause is the verdict (``plantcheck diagnose --decision``)."""
     fast_processes: tuple[tuple[str, float], ...] = (("flow", 20.0),)
     """Loop types whose process follows the valve within this many seconds (lag and dead
     time): a flow (Kano et al. 2004 and Yamashita 2006 read the flow as the valve position).
@@ -176,6 +183,12 @@ class _Run:
     events: StickSlipResult | None = None
     pi_window: PIEstimate | None = None
     gain_sign: int = 1
+    stretch: _Stretch | None = None
+    """The stretch the oscillation and tuning tests read, once found."""
+    tests: dict[str, StictionTestResult] = field(default_factory=dict)
+    """The stiction tests run on an oscillating window."""
+    decay: float | None = None
+    """The ACF decay ratio of the cycle, where read."""
 
 
 @dataclass(frozen=True)
@@ -246,14 +259,49 @@ def _standard(
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
     run = _Run(win, ts, loop_type, p, quantify, exclude_stiction, diag)
-    if _read_events(run) or _window_verdict(run):
-        return diag
-    stretch = _find_oscillation(run)
-    if stretch.osc.oscillating:
-        _judge_oscillation(run, stretch)
-    else:
-        _judge_quiet_loop(run, stretch)
-    return diag
+    return _run_chain(run).diag
+
+
+def _run_chain(run: _Run) -> _Run:
+    """The chain's steps on a checked window, then the learned decision where it applies."""
+    win, p = run.win, run.p
+    if not (_read_events(run) or _window_verdict(run)):
+        stretch = run.stretch = _find_oscillation(run)
+        if stretch.osc.oscillating:
+            _judge_oscillation(run, stretch)
+        else:
+            _judge_quiet_loop(run, stretch)
+    if p.cause_model is not None and _judged(win):
+        _weigh(run, p.cause_model)
+    _too_short(run)
+    return run
+
+
+def _judged(win: WindowReport) -> bool:
+    """Whether the window holds evidence to weigh: usable, saturated, or cut short by
+    set-point steps only (not bad data, manual mode or too few samples)."""
+    return win.verdict in (None, "saturation") or win.sp_limited
+
+
+def chain_evidence(
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    sp: FloatArray | None = None,
+    auto: BoolArray | None = None,
+    loop_type: str = "other",
+    params: ChainParams | None = None,
+) -> tuple[str, dict[str, float | None] | None]:
+    """The rules' cause and the evidence (``evidence.FEATURES``) of one window, None for a
+    window with nothing to weigh: what ``plantcheck model fit`` learns from. The rules
+    decide here (``params.cause_model`` is ignored) and S/J are not estimated."""
+    p = replace(params or ChainParams(), cause_model=None)
+    pv = np.asarray(pv, dtype=np.float64)
+    op = np.asarray(op, dtype=np.float64)
+    win = check_window(pv, op, sp, auto, p.window)
+    diag = DiagnosisDraft(loop_type, "standard", int(pv.size), ts, "ok", 0.0, False)
+    run = _run_chain(_Run(win, ts, loop_type, p, False, False, diag))
+    return diag.cause, (_evidence(run) if _judged(win) else None)
 
 
 def _read_events(run: _Run) -> bool:
@@ -481,7 +529,7 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
         diag.notes.append(split.reason + " (valve healthy: stiction excluded)")
         diag.actions = [action_for(diag.cause)]
         return
-    tests = run_stiction_tests(sp_s - pv_s, op_s, pv_s, ts, osc, run.loop_type, p)
+    tests = run.tests = run_stiction_tests(sp_s - pv_s, op_s, pv_s, ts, osc, run.loop_type, p)
     if events is not None:
         tests["stick_slip"] = _events_vote(events, p.stick_slip)
     v = vote(list(tests.values()), p.vote)
@@ -552,7 +600,8 @@ def _decay_ratio(run: _Run, st: _Stretch) -> float | None:
     sustained-cycle check and ``_well_damped`` both use it."""
     win = run.win
     x = win.op[st.a : st.b] if st.on_op else win.sp[st.a : st.b] - win.pv[st.a : st.b]
-    return acf_decay_ratio(x)
+    run.decay = acf_decay_ratio(x)
+    return run.decay
 
 
 def _well_damped(run: _Run, st: _Stretch, split: SplitResult, ratio: float | None) -> bool:
@@ -753,6 +802,123 @@ def _quantify_into(
         )
     else:
         diag.notes.append("S and J not reported: " + "; ".join(q.reasons))
+
+
+def _evidence(run: _Run) -> dict[str, float | None]:
+    """The window's evidence (``evidence.FEATURES``): what the chain computed on it."""
+    win, diag = run.win, run.diag
+    ev: dict[str, float | None] = dict(
+        window_evidence(win.pv, win.op, win.sp, win.indices, is_integrating(run.loop_type))
+    )
+    ind = diag.indices
+    for name in ("idle_index", "sp_step_slowness", "sp_step_overshoot", "load_recovery_slowness",
+                 "controller_fit"):  # fmt: skip
+        ev[name] = ind.get(name)
+    ev["load_count"] = ind.get("hagglund_load_count")
+    ev["vote_score"] = ind.get("stiction_vote")
+    ev["decay_ratio"] = run.decay
+    st = run.stretch
+    if st is not None:
+        osc = st.osc
+        ev["oscillating"] = float(osc.oscillating)
+        ev["on_op"] = float(st.on_op)
+        ev["regularity"] = osc.regularity
+        if osc.period_s:
+            period = osc.period_s / run.ts
+            ev["log_period_samples"] = float(np.log10(period))
+            ev["log_cycles"] = float(np.log10(max(st.b - st.a, 1) / period))
+            if st.pi.ti_s and st.pi.fit >= run.p.tuning.pi_min_fit:
+                ev["period_over_ti"] = osc.period_s / st.pi.ti_s
+        if osc.amplitude is not None and osc.noise_sigma > 0:
+            ev["amplitude_noise"] = osc.amplitude / osc.noise_sigma
+    for name, res in run.tests.items():
+        if name in FEATURE_TESTS:
+            ev[name] = res.value
+    events = run.events
+    if events is not None:
+        ev["stick_slip"] = events.test.value
+        ev["events"] = float(len(events.events))
+        ev["strong_events"] = float(sum(e.strong for e in events.events))
+        ev["event_reversals"] = float(events.reversals)
+        ev["event_travel"] = events.travel_median
+        ev["unresponsive"] = float(events.unresponsive is not None)
+    return ev
+
+
+FEATURE_TESTS = frozenset(
+    {"relay", "curve_fit", "area_ratio", "bicoherence", "cross_correlation", "histogram"}
+)
+"""The stiction tests whose values enter the evidence by their own names."""
+
+TOP_EVIDENCE = 5
+"""How many inputs the JSON's ``evidence`` lists."""
+
+
+def _weigh(run: _Run, model: CauseModel) -> None:
+    """The calibrated model weighs the evidence the chain gathered (issue 46): each cause's
+    probability and the inputs that moved it most. With ``decide_by = "learned"`` the most
+    probable cause is the verdict (a sticky valve's size read where the rules named none);
+    with ``"rules"`` the rules' verdict stands, its confidence is the model's probability of
+    it, and a note names the cause the model prefers when they differ."""
+    diag, p = run.diag, run.p
+    ev = _evidence(run)
+    d = decide(model, evidence_vector(ev))
+    probs = d.probabilities.copy()
+    if run.exclude_stiction and "stiction" in model.classes:
+        probs[model.classes.index("stiction")] = 0.0
+        probs /= probs.sum()
+    best = int(np.argmax(probs))
+    rules = diag.cause
+    learned = p.decide_by == "learned"
+    if not learned and rules not in model.classes:
+        return
+    k = best if learned else model.classes.index(rules)
+    diag.probabilities = {c: round(float(v), 3) for c, v in zip(model.classes, probs, strict=True)}
+    order = np.argsort(-np.abs(d.contributions[k]))[:TOP_EVIDENCE]
+    diag.evidence = [
+        {"name": model.features[i], "value": _rounded(ev.get(model.features[i])),
+         "contribution": round(float(d.contributions[k, i]), 3)}
+        for i in order.tolist() if d.contributions[k, i] != 0.0
+    ]  # fmt: skip
+    diag.confidence = float(probs[k])
+    if not learned:
+        if best != k:
+            diag.notes.append(
+                f"the learned decision reads {model.classes[best]} (p = {probs[best]:.2f}); the "
+                f"rules' {rules} has p = {probs[k]:.2f}"
+            )
+        return
+    cause = model.classes[k]
+    if cause != rules:
+        diag.notes.append(
+            f"the learned decision reads {cause} (p = {probs[k]:.2f}) where the rules read {rules}"
+        )
+    diag.cause = cause
+    diag.stiction["detected"] = cause == "stiction"
+    if cause == "stiction" and run.events is not None and "estimate" not in diag.stiction:
+        _estimate_into(diag, run.events, run.win.pv, run.win.op, run.gain_sign)
+    diag.actions = [_stiction_action(diag)]
+
+
+def _rounded(x: float | None) -> float | None:
+    """An evidence value to 4 significant digits (what the tests' indices can mean)."""
+    return None if x is None or not np.isfinite(x) else float(f"{x:.4g}")
+
+
+def _too_short(run: _Run) -> None:
+    """A window too short to show a slow fault is no evidence that the loop is healthy
+    (issue 46 item 4): ``ok`` on fewer than ``WindowParams.min_segment_samples`` samples reads
+    ``insufficient_data`` with the number needed."""
+    diag = run.diag
+    needed = run.p.window.min_segment_samples
+    if diag.cause == "ok" and diag.samples < needed:
+        diag.cause, diag.confidence = "insufficient_data", 0.9
+        diag.probabilities = diag.evidence = None
+        diag.notes.append(
+            f"too short to judge: {diag.samples} samples, at least {needed} needed to call the "
+            "loop healthy"
+        )
+        diag.actions = [action_for("insufficient_data")]
 
 
 WINDOW_VERDICTS = frozenset({"data_quality", "manual_mode", "insufficient_data"})

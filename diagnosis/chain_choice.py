@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plantcheck.diagnosis.chain import diagnose, diagnose_advanced
+from plantcheck.diagnosis.chain import ChainParams, diagnose, diagnose_advanced
 from plantcheck.diagnosis.result import Diagnosis
 from plantcheck.diagnosis.signal_tools import FloatArray
 from plantcheck.diagnosis.window import BoolArray
@@ -29,15 +29,19 @@ def diagnose_loop(
     loop_type: str = "other",
     quantify: bool = True,
     min_mv_coverage: float = MIN_MV_COVERAGE,
+    params: ChainParams | None = None,
 ) -> Diagnosis:
     """The advanced chain when MV covers ``min_mv_coverage`` of the window, else the standard
-    one (arguments as :func:`diagnose`; MV in % of travel, NaN = gap)."""
+    one (arguments as :func:`diagnose`; MV in % of travel, NaN = gap; ``params`` None: the
+    defaults)."""
     coverage = float(np.isfinite(mv).mean()) if mv is not None and mv.size else 0.0
     if mv is not None and coverage >= min_mv_coverage:
         return diagnose_advanced(
-            pv, op, mv, ts, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify
+            pv, op, mv, ts, sp=sp, auto=auto, loop_type=loop_type, params=params, quantify=quantify
         )
-    d = diagnose(pv, op, ts, sp=sp, auto=auto, loop_type=loop_type, quantify=quantify)
+    d = diagnose(
+        pv, op, ts, sp=sp, auto=auto, loop_type=loop_type, params=params, quantify=quantify
+    )
     if mv is not None:
         d = d.with_notes_first(
             [

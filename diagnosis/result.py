@@ -257,6 +257,12 @@ class Diagnosis:
     ``sp_step_slowness``, ...), by name."""
     actions: tuple[Action, ...] = ()
     notes: tuple[str, ...] = ()
+    probabilities: Mapping[str, float] | None = None
+    """Each cause's calibrated probability (contracts §2 optional field): the learned
+    decision's; None where the rules decided."""
+    evidence: tuple[Mapping[str, Any], ...] | None = None
+    """The inputs that moved the decision most, ``{"name", "value", "contribution"}``,
+    largest contribution first (contracts §2 optional field)."""
 
     def with_notes_first(self, notes: Sequence[str]) -> Diagnosis:
         """The same diagnosis with ``notes`` before its own (the record's or the store's)."""
@@ -280,6 +286,12 @@ class Diagnosis:
             "indices": json_safe(dict(self.indices)),
             "actions": [{"code": a.code, "text": a.text} for a in self.actions],
             "notes": list(self.notes),
+            **(
+                {"probabilities": json_safe(dict(self.probabilities))}
+                if self.probabilities is not None
+                else {}
+            ),
+            **({"evidence": json_safe(_plain(self.evidence))} if self.evidence is not None else {}),
         }
 
 
@@ -332,6 +344,8 @@ class DiagnosisDraft:
     indices: dict[str, float | int | None] = field(default_factory=dict)
     actions: list[dict[str, str]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    probabilities: dict[str, float] | None = None
+    evidence: list[dict[str, Any]] | None = None
 
     def freeze(self) -> Diagnosis:
         """The typed, frozen diagnosis of this draft."""
@@ -354,6 +368,8 @@ class DiagnosisDraft:
             indices=dict(self.indices),
             actions=tuple(Action(a["code"], a["text"]) for a in self.actions),
             notes=tuple(self.notes),
+            probabilities=dict(self.probabilities) if self.probabilities is not None else None,
+            evidence=tuple(self.evidence) if self.evidence is not None else None,
         )
 
 

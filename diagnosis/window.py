@@ -244,6 +244,11 @@ def _output(w: _Window, p: WindowParams) -> WindowReport | None:
     most of the window is ``saturation``, a constant OP without one manual mode."""
     clamp = w.clamp = _clamped(w.op, w.sp - w.pv, p)
     w.indices["saturation_fraction"] = clamp.fraction
+    if clamp.fraction > 0:
+        e = w.sp - w.pv
+        sigma_e = noise_sigma(e)
+        err = float(np.mean(np.abs(e[clamp.mask])))
+        w.indices["clamp_error_noise"] = err / sigma_e if sigma_e > 0 else 0.0
     if clamp.limit is not None:
         w.indices["op_limit"] = clamp.limit
     if float(np.ptp(w.op)) == 0.0:

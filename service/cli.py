@@ -19,6 +19,7 @@ from plantcheck import __version__
 from plantcheck.core.vocabulary import LoopType
 from plantcheck.service.allocator import tune_allocator
 from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_model import model_app
 from plantcheck.service.cli_run import demo_cmd, run_cmd, worker_cmd
 from plantcheck.service.cli_simulate import simulate_cmd
 from plantcheck.service.cli_store import db_app, import_cmd, ingest_cmd
@@ -51,6 +52,13 @@ class LogLevel(StrEnum):
     info = "info"
     warning = "warning"
     error = "error"
+
+
+class Decision(StrEnum):
+    """``diagnose --decision`` values (issue 46)."""
+
+    rules = "rules"
+    learned = "learned"
 
 
 class LogFormat(StrEnum):
@@ -175,9 +183,17 @@ def diagnose_cmd(
         int,
         typer.Option("--max-samples", min=100, help="Diagnose at most the last N samples."),
     ] = DEFAULT_MAX_SAMPLES,
+    decision: Annotated[
+        Decision,
+        typer.Option(
+            "--decision",
+            help="rules: the chain's rules name the cause, the learned model gives its "
+            "probability; learned: the model fitted on simulated plants names it.",
+        ),
+    ] = Decision.rules,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
-    from plantcheck.diagnosis import diagnose_loop
+    from plantcheck.diagnosis import ChainParams, diagnose_loop
 
     rec = _load(file, sample_time, ("pv", "op"), max_samples)
     sl, extra = _tail(rec, max_samples)
@@ -186,7 +202,9 @@ def diagnose_cmd(
     sp = rec.signals["sp"][sl] if "sp" in rec.signals else None
     auto = rec.auto[sl] if rec.auto is not None else None
     mv = rec.signals["mv"][sl] if "mv" in rec.signals else None
-    d = diagnose_loop(pv, op, rec.sample_time_s, sp=sp, mv=mv, auto=auto, loop_type=loop_type.value)
+    params = ChainParams(decide_by=decision.value)
+    d = diagnose_loop(pv, op, rec.sample_time_s, sp=sp, mv=mv, auto=auto,
+                      loop_type=loop_type.value, params=params)  # fmt: skip
     d = d.with_notes_first(rec.notes + extra)
     _emit(d.to_dict() if as_json else _summary(d), as_json)
 
@@ -284,6 +302,7 @@ app.command("worker", short_help='Run queued diagnosis jobs (engine = "queue", P
 )
 app.command("demo", short_help="Run the service against the bundled simulated plant.")(demo_cmd)
 app.add_typer(db_app, name="db")
+app.add_typer(model_app, name="model", short_help="Rebuild the learned cause decision.")
 
 
 def _emit(payload: Any, as_json: bool) -> None:

@@ -93,8 +93,21 @@ def slip_on_pv(proc: Process, J: float, ts: float) -> float:
 
 def simc_pi(p: Process) -> PIController:
     """SIMC PI tuning with τ_c = θ (Skogestad 2003); θ includes half the second lag."""
-    theta = max(p.theta_s + p.tau2_s / 2.0, 0.5)
-    tc = theta
+    return simc_pi_tc(p, 1.0)
+
+
+def effective_dead_time(p: Process) -> float:
+    """SIMC's effective dead time (s): θ, half the second lag, and an inverse response's
+    right-half-plane zero (Skogestad 2003, the half rule)."""
+    return max(p.theta_s + p.tau2_s / 2.0 + max(0.0, -p.zero_s), 0.5)
+
+
+def simc_pi_tc(p: Process, tc_over_theta: float) -> PIController:
+    """SIMC PI tuning (Skogestad 2003) with the closed-loop time constant τ_c set to
+    ``tc_over_theta`` × the effective dead time: 1 is SIMC's tight-but-robust choice, larger
+    is slower and more robust."""
+    theta = effective_dead_time(p)
+    tc = tc_over_theta * theta
     if p.kind == "integrating":
         kc = 1.0 / (p.K * (tc + theta))
         return PIController(Kc=kc, Ti_s=4.0 * (tc + theta))
@@ -112,7 +125,7 @@ def _loop_gain(p: Process, ti: float, w: float, ts: float) -> complex:
     else:
         g = p.K / (p.tau_s * s + 1.0)
         if p.tau2_s > 0:
-            g = g / (p.tau2_s * s + 1.0)
+            g = g * (1.0 + p.zero_s * s) / (p.tau2_s * s + 1.0)
     return complex(c * g * delay)
 
 

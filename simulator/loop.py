@@ -20,7 +20,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from plantcheck.simulator.actuator import ActuatorSpec
-from plantcheck.simulator.valves import HeValve, KanoValve, LinearValve, Valve
+from plantcheck.simulator.valves import (
+    BacklashValve,
+    ChoudhuryValve,
+    HeValve,
+    KanoValve,
+    LinearValve,
+    Valve,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -31,6 +38,8 @@ class Process:
 
     ``kind`` is ``"fopdt"`` (gain K, time constant tau_s, dead time theta_s, optional second
     time constant tau2_s) or ``"integrating"`` (K in %/s per % of travel, dead time theta_s).
+    ``zero_s`` (s) puts a zero (1 + zero_s·s) on a second-order process: negative, a
+    right-half-plane zero, is an inverse response (a drum level's swell, Åström & Hägglund 1995).
     """
 
     kind: Literal["fopdt", "integrating"] = "fopdt"
@@ -38,6 +47,7 @@ class Process:
     tau_s: float = 10.0
     theta_s: float = 2.0
     tau2_s: float = 0.0
+    zero_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -77,7 +87,7 @@ class LoopConfig:
 
     process: Process = field(default_factory=Process)
     controller: PIController = field(default_factory=PIController)
-    valve: Literal["linear", "kano", "he"] = "linear"
+    valve: Literal["linear", "kano", "he", "choudhury", "backlash"] = "linear"
     S: float = 0.0
     J: float = 0.0
     disturbances: tuple[Disturbance, ...] = ()
@@ -119,6 +129,10 @@ def make_valve(cfg: LoopConfig) -> Valve:
     if cfg.valve == "he":
         # He model parameters from (S, J): S = fs + fd, J = fs - fd.
         return HeValve(fs=(cfg.S + cfg.J) / 2.0, fd=(cfg.S - cfg.J) / 2.0)
+    if cfg.valve == "choudhury":
+        return ChoudhuryValve(S=cfg.S, J=cfg.J)
+    if cfg.valve == "backlash":
+        return BacklashValve(d=cfg.S)
     return LinearValve()
 
 
@@ -176,7 +190,12 @@ class ClosedLoop:
     def output(self, out_d: float = 0.0) -> float:
         """The true process value (% of span) before measurement noise."""
         p = self.cfg.process
-        return self.cfg.sp + (self.x2 if p.tau2_s > 0 else self.x1) + out_d
+        if p.tau2_s > 0:
+            # (1 + z·s)·x2 with dx2/dt = (x1 - x2)/tau2: the zero read off the second lag's state
+            y = self.x2 + p.zero_s * (self.x1 - self.x2) / p.tau2_s if p.zero_s else self.x2
+        else:
+            y = self.x1
+        return self.cfg.sp + y + out_d
 
     def step(
         self, sp: float, load: float = 0.0, out_d: float = 0.0, noise: float = 0.0

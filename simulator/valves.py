@@ -8,6 +8,9 @@ Each model maps the controller output OP (% of travel) to the valve stem positio
   (2004, DYCOPS), logic as in BDSIM ``stiction.m`` (methods.md §5.3).
 - ``HeValve``: semi-physical (f_s, f_d) model of He, Wang, Pottmann & Qin (2007), methods.md §5.4;
   S ~ f_s + f_d and J ~ f_s - f_d.
+- ``ChoudhuryValve``: the data-driven (S, J) model of Choudhury, Thornhill & Shah (2005): a
+  valve that stops sticks until the input has moved S from where it stuck, either way.
+- ``BacklashValve``: pure deadband (backlash) of width d: no stickband, no slip.
 """
 
 from __future__ import annotations
@@ -107,4 +110,59 @@ class HeValve:
         ur = u - self._x
         if abs(ur) > self.fs:
             self._x = _clip(u - (self.fd if ur > 0 else -self.fd))
+        return self._x
+
+
+@dataclass
+class ChoudhuryValve:
+    """Choudhury, Thornhill & Shah (2005) two-parameter stiction model.
+
+    Unlike Kano's, a valve that has stopped needs the input to move the full band ``S`` away
+    from where it stuck in either direction before it slips by ``J`` (% of travel).
+    """
+
+    S: float
+    J: float
+    _u_old: float | None = field(default=None, init=False, repr=False)
+    _du_old: float = field(default=0.0, init=False, repr=False)
+    _stuck: bool = field(default=True, init=False, repr=False)
+    _us: float = field(default=0.0, init=False, repr=False)
+    _y: float = field(default=0.0, init=False, repr=False)
+
+    def step(self, op: float) -> float:
+        u = _clip(op)
+        if self._u_old is None:
+            self._u_old = self._us = self._y = u
+            return u
+        du = u - self._u_old
+        if not self._stuck and du * self._du_old <= 0.0:
+            self._stuck, self._us = True, self._u_old
+        if self._stuck and abs(u - self._us) > self.S:
+            self._stuck = False
+        if not self._stuck:
+            direction = 1.0 if u >= self._us else -1.0
+            if du != 0.0:
+                direction = 1.0 if du > 0 else -1.0
+            self._y = _clip(u - direction * (self.S - self.J) / 2.0)
+        self._du_old = du if du != 0.0 else self._du_old
+        self._u_old = u
+        return self._y
+
+
+@dataclass
+class BacklashValve:
+    """Pure deadband of width ``d`` (% of travel): the stem follows the input at d/2 behind
+    it and holds while the input reverses inside the band (backlash in the linkage)."""
+
+    d: float
+    _x: float | None = field(default=None, init=False, repr=False)
+
+    def step(self, op: float) -> float:
+        u = _clip(op)
+        if self._x is None:
+            self._x = u
+        elif u - self._x > self.d / 2.0:
+            self._x = u - self.d / 2.0
+        elif self._x - u > self.d / 2.0:
+            self._x = u + self.d / 2.0
         return self._x

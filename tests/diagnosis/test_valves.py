@@ -54,3 +54,30 @@ def test_he_valve_saw_tooth_on_a_slow_ramp() -> None:
     assert np.allclose(jumps, 2.0, atol=0.02)
     kano = drive(KanoValve(S=4.0, J=2.0), u)
     assert np.sum(np.abs(np.diff(kano)) > 0.5) <= 1  # one breakaway, then smooth motion
+
+
+def test_choudhury_sticks_both_ways_for_S_then_slips_J() -> None:
+    """Choudhury et al. (2005): a stopped valve needs S either way; it then jumps to
+    (S - J)/2 behind the input."""
+    from plantcheck.simulator.valves import ChoudhuryValve
+
+    up = np.arange(50.0, 60.0 + 1e-9, 0.01)
+    down = np.arange(60.0, 40.0 - 1e-9, -0.01)[1:]
+    valve = ChoudhuryValve(S=4.0, J=2.0)
+    mv = np.array([valve.step(float(x)) for x in np.concatenate([up, down])])
+    # stuck at the start until the input has moved S = 4, then 1 behind it
+    first = int(np.argmax(np.abs(np.diff(mv)) > 1e-9)) + 1
+    assert abs(up[first] - 50.0 - 4.0) < 0.011
+    assert abs(mv[first] - (up[first] - 1.0)) < 1e-9
+    # after the reversal at 60 it holds until the input is S below where it stuck
+    rev = up.size
+    moved = rev + int(np.argmax(np.abs(np.diff(mv[rev - 1 :])) > 1e-9))
+    assert abs(down[moved - rev] - 56.0) < 0.011
+
+
+def test_backlash_holds_inside_its_band_and_never_slips() -> None:
+    from plantcheck.simulator.valves import BacklashValve
+
+    v = BacklashValve(d=2.0)
+    out = [v.step(x) for x in (50.0, 52.0, 51.5, 50.5, 49.0, 49.0)]
+    assert out == [50.0, 51.0, 51.0, 51.0, 50.0, 50.0]

@@ -116,3 +116,29 @@ def test_a_long_record_is_read_with_memory_bounded_by_max_rows(tmp_path: Path) -
     assert rec.t.size == 1000 and rec.get("pv") is not None
     assert "record has 5000 rows: read the last 1000" in rec.notes
     assert read_record(f).t.size == 5000
+
+
+def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_path: Path) -> None:
+    """Issue 46: one command rebuilds the model file from the simulated corpus (a small one
+    here); the exported trees are checked against LightGBM's own scores inside the command."""
+    from plantcheck.diagnosis.cause_model import load_cause_model
+    from plantcheck.diagnosis.evidence import FEATURE_NAMES
+
+    out = tmp_path / "m.npz"
+    r = run_cli("model", "fit", "--windows", "60", "--out", str(out), "--jobs", "2", "--json")
+    assert r.returncode == 0, r.stderr
+    figures = json.loads(r.stdout)
+    assert figures["windows"]["fit"] >= 55 and 0.0 <= figures["check_macro_f1"] <= 1.0
+    assert "corpus seed" in r.stderr  # progress on stderr
+    model = load_cause_model(out)
+    assert model.features == FEATURE_NAMES and model.meta["library"] == "lightgbm"
+
+
+def test_diagnose_decision_learned(run_cli: RunCli) -> None:
+    r = run_cli("diagnose", str(EXAMPLE), "--loop-type", "flow", "--json", "--decision", "learned")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["cause"] == "stiction" and abs(sum(out["probabilities"].values()) - 1) < 0.01
+    assert out["confidence"] == round(out["probabilities"]["stiction"], 2)
+    bad = run_cli("diagnose", str(EXAMPLE), "--decision", "guess")
+    assert bad.returncode == 2 and "--decision" in bad.stderr

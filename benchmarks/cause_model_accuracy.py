@@ -1,0 +1,166 @@
+"""The learned cause decision on simulated windows it never saw (issue 46).
+
+Prints, on the check seed's windows: macro-F1 and per-class F1 of the shipped model and of the
+rules on the same windows, the expected calibration error with the reliability table (and a
+PNG when matplotlib is present), accuracy per family; then, with ``--left-out``, the families
+left out one at a time: a model fitted without a family's windows, tested on that family's
+check windows, beside the full model on the same windows.
+
+    python benchmarks/cause_model_accuracy.py [--windows 16000] [--left-out] [--png FILE]
+
+The corpus' evidence is kept in build/corpus (the same cache ``plantcheck model fit --cache``
+fills), so a second run only fits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from plantcheck.diagnosis.cause_model import shipped_cause_model
+from plantcheck.service.cause_model_fit import (
+    CALIBRATION_SEED,
+    CHECK_SEED,
+    FIT_SEED,
+    corpus_evidence,
+    expected_calibration_error,
+    export_trees,
+    fit_temperature,
+    fit_trees,
+    macro_f1,
+    probabilities,
+    raw_scores,
+)
+from plantcheck.simulator.corpus import CLASSES, FAMILIES
+
+CACHE = Path(__file__).resolve().parents[1] / "build" / "corpus"
+
+LEFT_OUT: tuple[tuple[str, str], ...] = (
+    ("valve", "kano"),
+    ("valve", "he"),
+    ("valve", "choudhury"),
+    ("valve", "backlash"),
+    ("process", "integrating"),
+    ("process", "inverse"),
+    ("process", "deadtime"),
+    ("recording", "compressed"),
+    ("recording", "quantised"),
+    ("limit", "anywhere"),
+    ("sp", "cascade"),
+    ("load", "random_walk"),
+)
+"""The families left out one at a time (issue 46 item 6)."""
+
+
+def say(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def reliability(p: np.ndarray, y: np.ndarray, bins: int = 10) -> list[tuple[float, float, int]]:
+    """(mean confidence, accuracy, windows) per bin of the top-class probability."""
+    conf, right = p.max(axis=1), p.argmax(axis=1) == y
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    out = []
+    for lo, hi in itertools.pairwise(edges):
+        m = (conf > lo) & (conf <= hi)
+        if m.any():
+            out.append((float(conf[m].mean()), float(right[m].mean()), int(m.sum())))
+    return out
+
+
+def plot(table: list[tuple[float, float, int]], path: Path, ece: float) -> None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        say("matplotlib not installed: no PNG (pip install matplotlib)")
+        return
+    fig, ax = plt.subplots(figsize=(4.5, 4.5), dpi=100)
+    ax.plot([0, 1], [0, 1], color="0.6", lw=1, ls="--", label="perfect calibration")
+    ax.plot([c for c, _, _ in table], [a for _, a, _ in table], "o-", label="learned decision")
+    for c, a, n in table:
+        ax.annotate(str(n), (c, a), textcoords="offset points", xytext=(4, -10), fontsize=7)
+    ax.set_xlabel("probability of the cause given")
+    ax.set_ylabel("share of windows where it was the true cause")
+    ax.set_title(f"Reliability on simulated check windows (ECE {ece:.3f})", fontsize=9)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    say(f"wrote {path}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--windows", type=int, default=16_000)
+    ap.add_argument("--left-out", action="store_true")
+    ap.add_argument("--png", type=Path, default=Path(__file__).with_name("reliability.png"))
+    a = ap.parse_args()
+    model = shipped_cause_model()
+    if model is None:
+        sys.exit("no shipped model: run plantcheck model fit first")
+    small = max(60, a.windows // 4)
+    chk = corpus_evidence(CHECK_SEED, small, progress=say, cache=CACHE)
+    p = probabilities(raw_scores(model, chk.x), model.temperature)
+    pred = p.argmax(axis=1)
+    mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
+    rules = np.array([CLASSES.index(r) if r in CLASSES else -1 for r in chk.rules])
+    rf1, rf1s = macro_f1(chk.y, rules, len(CLASSES))
+    ece = expected_calibration_error(p, chk.y)
+    print(f"check seed {CHECK_SEED}: {chk.y.size} windows ({chk.skipped} with nothing to weigh)")
+    print(f"learned macro-F1 {mf1:.3f}, accuracy {np.mean(pred == chk.y):.3f}; "
+          f"rules macro-F1 {rf1:.3f}, accuracy {np.mean(rules == chk.y):.3f}")  # fmt: skip
+    print("class".ljust(22) + "learned F1   rules F1")
+    for c, f, r in zip(CLASSES, f1s, rf1s, strict=True):
+        print(f"{c:22s}{f:10.3f}{r:11.3f}")
+    table = reliability(p, chk.y)
+    print(f"expected calibration error {ece:.3f}; reliability (confidence, accuracy, windows):")
+    for c, acc, n in table:
+        print(f"  {c:.2f}  {acc:.2f}  {n}")
+    plot(table, a.png, ece)
+    print("accuracy per family (learned / rules, windows):")
+    for key, values in FAMILIES.items():
+        fam = np.array(chk.family[key])
+        cells = []
+        for v in values:
+            m = fam == v
+            if m.any():
+                cells.append(f"{v} {np.mean(pred[m] == chk.y[m]):.2f}/"
+                             f"{np.mean(rules[m] == chk.y[m]):.2f} ({int(m.sum())})")  # fmt: skip
+        print(f"  {key}: " + ", ".join(cells))
+    short = chk.samples < 300
+    right = pred == chk.y
+    print(f"  windows under 300 samples: {np.mean(right[short]):.2f} ({int(short.sum())}); "
+          f"300 and more: {np.mean(right[~short]):.2f}")  # fmt: skip
+    if a.left_out:
+        left_out(a.windows, chk, pred)
+
+
+def left_out(windows: int, chk: object, pred: np.ndarray) -> None:
+    """Fit without each family of ``LEFT_OUT``, test on its check windows."""
+    fit = corpus_evidence(FIT_SEED, windows, progress=say, cache=CACHE)
+    cal = corpus_evidence(CALIBRATION_SEED, max(60, windows // 4), progress=say, cache=CACHE)
+    print("left-out family          windows  full model  fitted without  drop   (accuracy)")
+    for key, value in LEFT_OUT:
+        keep = np.array(fit.family[key]) != value
+        booster = fit_trees(fit.x[keep], fit.y[keep])
+        cal_keep = np.array(cal.family[key]) != value
+        m = export_trees(booster, 1.0, {})
+        t = fit_temperature(raw_scores(m, cal.x[cal_keep]), cal.y[cal_keep])
+        fam = np.array(chk.family[key]) == value  # type: ignore[attr-defined]
+        y = chk.y[fam]  # type: ignore[attr-defined]
+        p_out = probabilities(raw_scores(m, chk.x[fam]), t).argmax(axis=1)  # type: ignore[attr-defined]
+        full, out = float(np.mean(pred[fam] == y)), float(np.mean(p_out == y))
+        print(
+            f"{key + '=' + value:24s} {int(fam.sum()):7d}  {full:10.3f}  {out:14.3f}  "
+            f"{full - out:+.3f}"
+        )
+
+
+if __name__ == "__main__":
+    main()

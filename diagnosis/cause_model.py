@@ -1,0 +1,148 @@
+"""The learned decision (issue 46): a gradient-boosted tree ensemble over the chain's evidence
+(``evidence.FEATURES``), fitted on the simulated corpus (``simulator.corpus``) and evaluated
+here in numpy, so that the diagnosis needs neither the fitting library nor its import time.
+
+The ensemble is LightGBM's (Ke et al. 2017) multiclass model, exported node by node by
+``plantcheck model fit`` into ``models/cause_model.npz`` (numpy arrays, no pickle). Its raw
+scores are calibrated by one temperature (Guo et al. 2017) fitted on simulated windows of
+seeds the trees never saw. Each input's contribution to a class is read along the decision
+path (Saabas 2014: the change in a node's value that the split on that input made), so the
+contributions and the trees' base values add up to the raw score exactly.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+MODEL_FILE = "cause_model.npz"
+"""The shipped model, in the package folder ``diagnosis/models``."""
+
+
+@dataclass(frozen=True, eq=False)
+class CauseModel:
+    """A multiclass tree ensemble, every tree's nodes in flat arrays (global node indices).
+
+    ``feature`` is the split input of each node (-1 on a leaf), ``threshold`` its cut
+    (``x <= threshold`` goes left), ``default_left`` where a missing input goes, ``nan_as_zero``
+    whether a missing input is read as 0 first (LightGBM's ``missing_type`` None), ``value``
+    the node's output (a leaf's, or an inner node's own average). ``roots`` and
+    ``tree_class`` give each tree's first node and the class it scores.
+    """
+
+    classes: tuple[str, ...]
+    features: tuple[str, ...]
+    feature: IntArray
+    threshold: FloatArray
+    left: IntArray
+    right: IntArray
+    default_left: BoolArray
+    nan_as_zero: BoolArray
+    value: FloatArray
+    roots: IntArray
+    tree_class: IntArray
+    depth: int
+    temperature: float
+    meta: dict[str, object]
+
+    def to_arrays(self) -> dict[str, NDArray[np.generic]]:
+        """The arrays ``np.savez`` writes (the metadata as UTF-8 JSON bytes)."""
+        head = {"classes": self.classes, "features": self.features, "depth": self.depth,
+                "temperature": self.temperature, "meta": self.meta}  # fmt: skip
+        return {
+            "head": np.frombuffer(json.dumps(head).encode(), dtype=np.uint8),
+            "feature": self.feature,
+            "threshold": self.threshold,
+            "left": self.left,
+            "right": self.right,
+            "default_left": self.default_left,
+            "nan_as_zero": self.nan_as_zero,
+            "value": self.value,
+            "roots": self.roots,
+            "tree_class": self.tree_class,
+        }
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The model's reading of one window: calibrated probabilities per class, the raw scores,
+    and each input's contribution to each class's raw score (classes × inputs)."""
+
+    probabilities: FloatArray
+    raw: FloatArray
+    base: FloatArray
+    contributions: FloatArray
+
+
+def load_cause_model(path: Path) -> CauseModel:
+    """Read a model written by ``plantcheck model fit`` (``np.load`` without pickle)."""
+    with np.load(path, allow_pickle=False) as z:
+        head = json.loads(bytes(z["head"]).decode())
+        return CauseModel(
+            classes=tuple(head["classes"]),
+            features=tuple(head["features"]),
+            feature=z["feature"].astype(np.int64),
+            threshold=z["threshold"].astype(np.float64),
+            left=z["left"].astype(np.int64),
+            right=z["right"].astype(np.int64),
+            default_left=z["default_left"].astype(bool),
+            nan_as_zero=z["nan_as_zero"].astype(bool),
+            value=z["value"].astype(np.float64),
+            roots=z["roots"].astype(np.int64),
+            tree_class=z["tree_class"].astype(np.int64),
+            depth=int(head["depth"]),
+            temperature=float(head["temperature"]),
+            meta=dict(head.get("meta") or {}),
+        )
+
+
+@lru_cache(maxsize=1)
+def shipped_cause_model() -> CauseModel | None:
+    """The model shipped with the package, or None when the file is absent (a build that
+    has not fitted one yet: the chain's rules then decide alone)."""
+    ref = resources.files("plantcheck.diagnosis.models").joinpath(MODEL_FILE)
+    if not ref.is_file():
+        return None
+    with resources.as_file(ref) as path:
+        return load_cause_model(path)
+
+
+def decide(model: CauseModel, x: FloatArray) -> Decision:
+    """Walk every tree at once for the input vector ``x`` (``model.features`` order, NaN =
+    not computed): raw scores per class, their Saabas contributions, and the probabilities
+    softmax(raw / temperature)."""
+    n_cls, n_feat = len(model.classes), len(model.features)
+    idx = model.roots.copy()
+    contrib = np.zeros((n_cls, n_feat))
+    for _ in range(model.depth):
+        f = model.feature[idx]
+        inner = f >= 0
+        if not inner.any():
+            break
+        xv = x[np.where(inner, f, 0)]
+        missing = np.isnan(xv)
+        xv = np.where(missing & model.nan_as_zero[idx], 0.0, xv)
+        go_left = np.where(np.isnan(xv), model.default_left[idx], xv <= model.threshold[idx])
+        nxt = np.where(inner, np.where(go_left, model.left[idx], model.right[idx]), idx)
+        delta = model.value[nxt] - model.value[idx]
+        np.add.at(contrib, (model.tree_class[inner], f[inner]), delta[inner])
+        idx = nxt
+    raw = np.bincount(model.tree_class, weights=model.value[idx], minlength=n_cls).astype(
+        np.float64
+    )
+    base = np.bincount(model.tree_class, weights=model.value[model.roots], minlength=n_cls).astype(
+        np.float64
+    )
+    z = raw / model.temperature
+    p = np.exp(z - z.max())
+    return Decision(p / p.sum(), raw, base, contrib)

@@ -1,0 +1,100 @@
+"""The evidence a window gives: the chain's test outputs as one vector, the input of the
+learned decision (issue 46).
+
+Every entry is dimensionless (ratios to the noise, to the sample time, to the window) so that
+the decision learned on simulated loops reads any plant's units. An entry the chain did not
+compute on a window (the stiction tests of a loop that does not oscillate, say) is NaN; the
+model learns what its absence means.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from plantcheck.diagnosis.signal_tools import FloatArray, noise_sigma
+
+FEATURES: dict[str, str] = {
+    "log_samples": "log10 of the window's samples",
+    "integrating": "1 for a level (integrating) loop, else 0",
+    "clamp_share": "share of the window with OP resting at a limit (any level) and PV off SP",
+    "clamp_error": "mean |error| while clamped, in noise σ of the error",
+    "op_at_extreme": "share of samples with OP exactly at its window maximum or minimum",
+    "error_sd_noise": "σ of the control error over its noise σ (variability)",
+    "error_offset": "|mean error| over its σ: PV held off set point on one side",
+    "op_sd": "σ of OP, % of travel",
+    "op_noise_share": "OP's sample-to-sample noise σ over its σ",
+    "pv_unique_fraction": "share of distinct PV values (quantised or compressed PV reads low)",
+    "pv_unchanged_fraction": "share of samples where PV does not change",
+    "sp_steps": "set-point steps found",
+    "oscillating": "1 when the oscillation test found a sustained oscillation, else 0",
+    "on_op": "1 when the oscillation showed in OP rather than the error",
+    "regularity": "Thornhill's regularity of the oscillation",
+    "log_period_samples": "log10 of the oscillation period in samples",
+    "log_cycles": "log10 of the cycles the analysed stretch holds",
+    "amplitude_noise": "oscillation amplitude over the error's noise σ",
+    "load_count": "Hägglund's load count",
+    "period_over_ti": "oscillation period over the identified integral time",
+    "decay_ratio": "ACF decay ratio of the cycle (Miao & Seborg 1999)",
+    "controller_fit": "R² of the identified PI controller",
+    "idle_index": "Hägglund's idle index",
+    "sp_step_slowness": "set-point responses' closed-loop time constant over their dead time",
+    "sp_step_overshoot": "set-point responses' median overshoot",
+    "load_recovery_slowness": "load recoveries' return time over departure time",
+    "relay": "relay-shape index of the error's half-cycles",
+    "curve_fit": "curve-fit index (He et al. 2007)",
+    "area_ratio": "area-ratio index (Singhal & Salsbury 2005)",
+    "bicoherence": "non-Gaussianity index of the error (Choudhury et al. 2004)",
+    "cross_correlation": "OP-PV cross-correlation's phase index (Horch 1999)",
+    "histogram": "PV histogram index (Horch 2000)",
+    "vote_score": "the stiction tests' vote score",
+    "stick_slip": "stick-slip events' test value",
+    "events": "stick-slip events found",
+    "strong_events": "events the valve-step model confirms",
+    "event_reversals": "successive events in opposite directions",
+    "event_travel": "median OP travel at breakaway, % of OP's range",
+    "unresponsive": "1 when the valve did not answer a large OP travel",
+}
+"""Each evidence entry's name and meaning, in the order of the model's input vector."""
+
+FEATURE_NAMES: tuple[str, ...] = tuple(FEATURES)
+
+
+def window_evidence(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray,
+    indices: dict[str, float],
+    integrating: bool,
+) -> dict[str, float]:
+    """The entries every usable window has, from its cleaned signals and window checks."""
+    e = sp - pv
+    n = int(pv.size)
+    sd_e = float(np.std(e))
+    sigma = noise_sigma(e)
+    sd_op = float(np.std(op))
+    op_hi, op_lo = float(np.max(op)), float(np.min(op))
+    at = (op >= op_hi - 1e-9 * max(1.0, abs(op_hi))) | (op <= op_lo + 1e-9 * max(1.0, abs(op_lo)))
+    return {
+        "log_samples": math.log10(max(n, 1)),
+        "integrating": float(integrating),
+        "clamp_share": float(indices.get("saturation_fraction", 0.0)),
+        "clamp_error": float(indices.get("clamp_error_noise", math.nan)),
+        "op_at_extreme": float(np.mean(at)) if sd_op > 0 else 1.0,
+        "error_sd_noise": sd_e / sigma if sigma > 0 else math.nan,
+        "error_offset": abs(float(np.mean(e))) / sd_e if sd_e > 0 else math.nan,
+        "op_sd": sd_op,
+        "op_noise_share": noise_sigma(op) / sd_op if sd_op > 0 else math.nan,
+        "pv_unique_fraction": float(indices.get("pv_unique_fraction", math.nan)),
+        "pv_unchanged_fraction": float(indices.get("pv_unchanged_fraction", math.nan)),
+        "sp_steps": float(indices.get("sp_steps", 0.0)),
+    }
+
+
+def evidence_vector(evidence: dict[str, float | None]) -> FloatArray:
+    """The entries in ``FEATURE_NAMES`` order, NaN where not computed."""
+    return np.array(
+        [math.nan if evidence.get(k) is None else float(evidence[k]) for k in FEATURE_NAMES],  # type: ignore[arg-type]
+        dtype=np.float64,
+    )

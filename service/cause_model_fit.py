@@ -1,0 +1,334 @@
+"""``plantcheck model fit``: the learned decision rebuilt from the simulated corpus (issue 46).
+
+Steps: draw the corpus windows (``simulator.corpus``) of three seeds apart (fit, calibration,
+check), run the chain's tests on each (``diagnosis.chain.chain_evidence``), fit LightGBM's
+multiclass gradient-boosted trees (Ke et al. 2017) on the first, fit one softmax temperature
+(Guo et al. 2017) on the second, report the third, and export the trees into the numpy file the
+diagnosis reads (``diagnosis.cause_model``). Real plant records play no part: they are test
+sets only.
+
+LightGBM and scikit-learn are imported here only (the ``fit`` extra), so the CLI's other
+commands never pay their import time.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import multiprocessing
+import os
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
+
+from plantcheck.diagnosis.cause_model import CauseModel, decide
+from plantcheck.diagnosis.chain import chain_evidence
+from plantcheck.diagnosis.evidence import FEATURE_NAMES, evidence_vector
+from plantcheck.simulator.corpus import CLASSES, FAMILY_KEYS, draw_case
+
+FIT_SEED, CALIBRATION_SEED, CHECK_SEED = 101, 202, 303
+"""The corpus seeds of the fit, the temperature and the check figures: never the same."""
+
+LGBM_PARAMS: dict[str, Any] = {
+    "objective": "multiclass",
+    "n_estimators": 250,
+    "learning_rate": 0.05,
+    "num_leaves": 15,
+    "min_child_samples": 20,
+    "subsample": 0.8,
+    "subsample_freq": 1,
+    "colsample_bytree": 0.8,
+    "reg_lambda": 1.0,
+    "verbose": -1,
+}
+"""LightGBM's settings: small trees, slow learning, row and column subsampling (the library's
+usual guards against fitting the corpus' accidents); chosen on the calibration seed."""
+
+
+@dataclass(frozen=True)
+class CorpusEvidence:
+    """The evidence of a corpus' windows: inputs (windows × ``FEATURE_NAMES``), true class
+    index, the rules' causes, families and loop types; windows with nothing to weigh are left
+    out (``skipped`` counts them)."""
+
+    x: NDArray[np.float64]
+    y: NDArray[np.int64]
+    rules: tuple[str, ...]
+    family: dict[str, tuple[str, ...]]
+    samples: NDArray[np.int64]
+    skipped: int
+
+
+def _one(args: tuple[int, int]) -> tuple[int, str, list[float] | None, dict[str, str], int]:
+    seed, index = args
+    case, rec = draw_case(seed, index)
+    rules, ev = chain_evidence(rec.pv, rec.op, case.config.sample_time_s, sp=rec.sp,
+                               loop_type=case.loop_type)  # fmt: skip
+    vec = None if ev is None else evidence_vector(ev).tolist()
+    return CLASSES.index(case.cause), rules, vec, case.family, case.config.n_samples
+
+
+def corpus_evidence(
+    seed: int,
+    n: int,
+    jobs: int | None = None,
+    progress: Callable[[str], None] | None = None,
+    cache: Path | None = None,
+) -> CorpusEvidence:
+    """The evidence of windows 0..n-1 of corpus ``seed``, computed on ``jobs`` processes (all
+    cores by default) and kept in ``cache`` (a folder) when given."""
+    path = cache / f"corpus-{seed}-{n}-{len(FEATURE_NAMES)}.npz" if cache else None
+    if path is not None and path.is_file():
+        with np.load(path, allow_pickle=False) as z:
+            fam = json.loads(bytes(z["family"]).decode())
+            return CorpusEvidence(z["x"], z["y"], tuple(json.loads(bytes(z["rules"]).decode())),
+                                  {k: tuple(v) for k, v in fam.items()}, z["samples"],
+                                  int(z["skipped"]))  # fmt: skip
+    jobs = jobs or os.cpu_count() or 1
+    rows: list[list[float]] = []
+    ys: list[int] = []
+    rules: list[str] = []
+    fams: dict[str, list[str]] = {k: [] for k in FAMILY_KEYS}
+    lengths: list[int] = []
+    skipped = 0
+    t0 = time.monotonic()
+    ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
+    with ctx.Pool(jobs) as pool:
+        for done, (y, rule, vec, family, ns) in enumerate(
+            pool.imap(_one, [(seed, i) for i in range(n)], chunksize=16), 1
+        ):
+            if vec is None:
+                skipped += 1
+            else:
+                rows.append(vec)
+                ys.append(y)
+                rules.append(rule)
+                lengths.append(ns)
+                for k in FAMILY_KEYS:
+                    fams[k].append(family[k])
+            if progress and (done % 500 == 0 or done == n):
+                rate = done / max(time.monotonic() - t0, 1e-9)
+                progress(f"corpus seed {seed}: {done}/{n} windows, {rate:.0f}/s, "
+                         f"about {(n - done) / rate:.0f} s left")  # fmt: skip
+    out = CorpusEvidence(
+        np.array(rows, dtype=np.float64).reshape(-1, len(FEATURE_NAMES)),
+        np.array(ys, dtype=np.int64),
+        tuple(rules),
+        {k: tuple(v) for k, v in fams.items()},
+        np.array(lengths, dtype=np.int64),
+        skipped,
+    )
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(
+            path, x=out.x, y=out.y, samples=out.samples, skipped=np.array(skipped),
+            rules=np.frombuffer(json.dumps(out.rules).encode(), dtype=np.uint8),
+            family=np.frombuffer(json.dumps(out.family).encode(), dtype=np.uint8),
+        )  # fmt: skip
+    return out
+
+
+def fit_trees(x: NDArray[np.float64], y: NDArray[np.int64], seed: int = 0) -> Any:
+    """LightGBM's multiclass classifier fitted on ``x``, ``y`` (its booster)."""
+    import lightgbm
+
+    clf = lightgbm.LGBMClassifier(**LGBM_PARAMS, random_state=seed, n_jobs=os.cpu_count() or 1)
+    clf.fit(x, y)
+    return clf.booster_
+
+
+def export_trees(booster: Any, temperature: float, meta: dict[str, object]) -> CauseModel:
+    """The booster's trees as the flat arrays ``diagnosis.cause_model`` walks."""
+    dump = booster.dump_model()
+    n_cls = int(dump["num_class"])
+    feature: list[int] = []
+    threshold: list[float] = []
+    left: list[int] = []
+    right: list[int] = []
+    default_left: list[bool] = []
+    nan_as_zero: list[bool] = []
+    value: list[float] = []
+    roots: list[int] = []
+    tree_class: list[int] = []
+    depth = 0
+
+    def add(node: dict[str, Any], level: int) -> int:
+        nonlocal depth
+        depth = max(depth, level)
+        i = len(feature)
+        feature.append(-1)
+        threshold.append(0.0)
+        left.append(-1)
+        right.append(-1)
+        default_left.append(False)
+        nan_as_zero.append(False)
+        if "leaf_value" in node:
+            value.append(float(node["leaf_value"]))
+            return i
+        if node.get("decision_type", "<=") != "<=":
+            raise ValueError(f"unsupported split {node.get('decision_type')!r}")
+        value.append(float(node["internal_value"]))
+        feature[i] = int(node["split_feature"])
+        threshold[i] = float(node["threshold"])
+        default_left[i] = bool(node["default_left"])
+        nan_as_zero[i] = node.get("missing_type") == "None"
+        left[i] = add(node["left_child"], level + 1)
+        right[i] = add(node["right_child"], level + 1)
+        return i
+
+    for tree in dump["tree_info"]:
+        roots.append(add(tree["tree_structure"], 1))
+        tree_class.append(int(tree["tree_index"]) % n_cls)
+    return CauseModel(
+        classes=CLASSES,
+        features=FEATURE_NAMES,
+        feature=np.array(feature, dtype=np.int32).astype(np.int64),
+        threshold=np.array(threshold),
+        left=np.array(left, dtype=np.int64),
+        right=np.array(right, dtype=np.int64),
+        default_left=np.array(default_left),
+        nan_as_zero=np.array(nan_as_zero),
+        value=np.array(value),
+        roots=np.array(roots, dtype=np.int64),
+        tree_class=np.array(tree_class, dtype=np.int64),
+        depth=depth,
+        temperature=temperature,
+        meta=meta,
+    )
+
+
+def raw_scores(model: CauseModel, x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The model's raw class scores for every row of ``x``."""
+    return np.array([decide(model, row).raw for row in x], dtype=np.float64).reshape(
+        -1, len(model.classes)
+    )
+
+
+def fit_temperature(raw: NDArray[np.float64], y: NDArray[np.int64]) -> float:
+    """The softmax temperature minimising the negative log-likelihood of ``y`` (Guo et al.
+    2017): one number, so the ranking of causes never changes."""
+
+    def nll(log_t: float) -> float:
+        z = raw / math.exp(log_t)
+        z = z - z.max(axis=1, keepdims=True)
+        logp = z - np.log(np.exp(z).sum(axis=1, keepdims=True))
+        return float(-np.mean(logp[np.arange(y.size), y]))
+
+    res = minimize_scalar(nll, bounds=(math.log(0.2), math.log(5.0)), method="bounded")
+    return float(math.exp(res.x))
+
+
+def probabilities(raw: NDArray[np.float64], temperature: float) -> NDArray[np.float64]:
+    """softmax(raw / temperature), row by row."""
+    z = raw / temperature
+    z = z - z.max(axis=1, keepdims=True)
+    p = np.exp(z)
+    out: NDArray[np.float64] = p / p.sum(axis=1, keepdims=True)
+    return out
+
+
+def macro_f1(
+    y: NDArray[np.int64], pred: NDArray[np.int64], n_cls: int
+) -> tuple[float, list[float]]:
+    """Macro-averaged F1 and each class's F1."""
+    f1s = []
+    for c in range(n_cls):
+        tp = float(np.sum((pred == c) & (y == c)))
+        fp = float(np.sum((pred == c) & (y != c)))
+        fn = float(np.sum((pred != c) & (y == c)))
+        f1s.append(2 * tp / (2 * tp + fp + fn) if tp else 0.0)
+    return float(np.mean(f1s)), f1s
+
+
+def expected_calibration_error(
+    p: NDArray[np.float64], y: NDArray[np.int64], bins: int = 10
+) -> float:
+    """ECE of the top-class probability over ``bins`` equal-width bins (Guo et al. 2017)."""
+    conf = p.max(axis=1)
+    right = p.argmax(axis=1) == y
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    ece = 0.0
+    for lo, hi in itertools.pairwise(edges):
+        m = (conf > lo) & (conf <= hi)
+        if m.any():
+            ece += float(m.mean()) * abs(float(right[m].mean()) - float(conf[m].mean()))
+    return ece
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """The figures of one fit on the check seed."""
+
+    model: CauseModel
+    windows: dict[str, int]
+    temperature: float
+    macro_f1: float
+    class_f1: dict[str, float]
+    ece: float
+    rules_macro_f1: float
+
+
+def fit_model(
+    windows: int,
+    jobs: int | None = None,
+    progress: Callable[[str], None] | None = None,
+    cache: Path | None = None,
+    seeds: Sequence[int] = (FIT_SEED, CALIBRATION_SEED, CHECK_SEED),
+) -> FitReport:
+    """Fit on ``windows`` windows of the fit seed, calibrate and check on a quarter as many
+    of the other two; the exported model and its check figures."""
+    say = progress or (lambda _m: None)
+    fit_s, cal_s, chk_s = seeds
+    small = max(60, windows // 4)
+    fit = corpus_evidence(fit_s, windows, jobs, say, cache)
+    cal = corpus_evidence(cal_s, small, jobs, say, cache)
+    chk = corpus_evidence(chk_s, small, jobs, say, cache)
+    say(f"fitting {LGBM_PARAMS['n_estimators']} rounds on {fit.y.size} windows")
+    booster = fit_trees(fit.x, fit.y)
+    meta: dict[str, object] = {
+        "library": "lightgbm",
+        "params": LGBM_PARAMS,
+        "seeds": {"fit": fit_s, "calibration": cal_s, "check": chk_s},
+        "windows": {
+            "fit": int(fit.y.size),
+            "calibration": int(cal.y.size),
+            "check": int(chk.y.size),
+        },
+    }
+    model = export_trees(booster, 1.0, meta)
+    # the export must score exactly as the library does
+    ref = booster.predict(cal.x[:50], raw_score=True)
+    mine = raw_scores(model, cal.x[:50])
+    if not np.allclose(ref, mine, atol=1e-6):
+        raise RuntimeError(f"exported trees disagree with LightGBM: {np.abs(ref - mine).max():g}")
+    temperature = fit_temperature(raw_scores(model, cal.x), cal.y)
+    model = export_trees(booster, temperature, meta)
+    p = probabilities(raw_scores(model, chk.x), temperature)
+    pred = p.argmax(axis=1)
+    mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
+    rule_pred = np.array([CLASSES.index(r) if r in CLASSES else -1 for r in chk.rules])
+    rules_f1, _ = macro_f1(chk.y, rule_pred, len(CLASSES))
+    return FitReport(
+        model,
+        {"fit": int(fit.y.size), "calibration": int(cal.y.size), "check": int(chk.y.size)},
+        temperature,
+        mf1,
+        dict(zip(CLASSES, f1s, strict=True)),
+        expected_calibration_error(p, chk.y),
+        rules_f1,
+    )
+
+
+def save_model(model: CauseModel, path: Path) -> None:
+    """Write the model as ``np.savez_compressed`` arrays (no pickle)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("wb") as fh:
+        np.savez_compressed(fh, **model.to_arrays())  # type: ignore[arg-type]

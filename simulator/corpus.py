@@ -1,0 +1,338 @@
+"""A training corpus randomised the way plants differ (issue 46): labelled windows from every
+process family, valve model, load, set-point pattern, output limit and recording, drawn
+independently of the class so that the decision learned on it cannot lean on any one of them.
+
+Each window is reproducible from ``(seed, index)`` alone, so a corpus is generated in parallel
+and any window can be drawn again. The family each window came from is part of its label
+(``CorpusCase.family``): a model can be fitted without one family and tested on it.
+
+Classes are balanced: window ``index`` has class ``CLASSES[index % 6]``. A draw whose fault
+the record cannot show (a sticky valve whose cycle hides in the noise, a limit the output never
+reaches) is drawn again with the next sub-seed, so every label is visible in its window; the
+ambiguity that remains (short records, few cycles, noise) is the plant's own.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from plantcheck.simulator.cases import (
+    simc_pi_tc,
+    ultimate_gain,
+)
+from plantcheck.simulator.loop import (
+    Disturbance,
+    LoopConfig,
+    LoopRecord,
+    PIController,
+    Process,
+    simulate_loop,
+)
+
+CLASSES: tuple[str, ...] = (
+    "ok",
+    "stiction",
+    "aggressive_tuning",
+    "sluggish_tuning",
+    "external_disturbance",
+    "saturation",
+)
+"""The causes a simulated loop is built to show (contracts §2's first six)."""
+
+FAMILY_KEYS: tuple[str, ...] = ("process", "valve", "load", "sp", "limit", "recording")
+"""The family axes of a window's label; each has the values listed in ``FAMILIES``."""
+
+FAMILIES: dict[str, tuple[str, ...]] = {
+    "process": ("fopdt", "sopdt", "integrating", "inverse", "deadtime"),
+    "valve": ("linear", "kano", "he", "choudhury", "backlash"),
+    "load": ("steps", "ramps", "random_walk", "coloured", "periodic"),
+    "sp": ("constant", "steps", "ramps", "cascade"),
+    "limit": ("free", "at_100", "anywhere"),
+    "recording": ("continuous", "quantised", "compressed"),
+}
+
+MIN_SAMPLES, MAX_SAMPLES = 150, 12_000
+"""Window lengths, drawn log-uniformly: short slow records to a day at a few seconds."""
+
+VISIBLE = 1.6
+"""A fault is visible when the control error's σ is at least this many times the noise σ
+(its own variance then exceeds the noise's by half again); drawn again otherwise."""
+
+
+@dataclass(frozen=True)
+class CorpusCase:
+    """One labelled window: its configuration, true cause, loop type and family."""
+
+    index: int
+    cause: str
+    loop_type: str
+    config: LoopConfig
+    family: dict[str, str]
+    ultimate_period_s: float
+
+
+def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _process(rng: np.random.Generator, kind: str, ts: float) -> tuple[Process, str]:
+    """A process of the family ``kind`` on the sample time ``ts`` (s), with its loop type."""
+    tau = _log_uniform(rng, 3.0, 150.0) * ts
+    gain = _log_uniform(rng, 0.3, 3.0)
+    theta = _log_uniform(rng, 0.05, 0.8) * tau
+    if kind == "integrating":
+        # the time the level takes to move by the valve's step, 20-600 samples
+        return Process("integrating", K=1.0 / (_log_uniform(rng, 20.0, 600.0) * ts),
+                       theta_s=max(ts, _log_uniform(rng, 1.0, 20.0) * ts)), "level"  # fmt: skip
+    if kind == "deadtime":
+        theta = _log_uniform(rng, 1.2, 5.0) * tau
+    proc = Process("fopdt", K=gain, tau_s=tau, theta_s=max(ts, theta))
+    if kind in ("sopdt", "inverse"):
+        proc = replace(proc, tau2_s=_log_uniform(rng, 0.2, 1.0) * tau)
+    if kind == "inverse":
+        proc = replace(proc, zero_s=-_log_uniform(rng, 0.3, 1.5) * proc.tau2_s)
+    loop_type = str(rng.choice(["flow", "pressure", "temperature", "composition", "other"]))
+    return proc, loop_type
+
+
+def _steady_op(proc: Process, sp: float, load: float, u0: float) -> float:
+    """OP (%) holding PV at ``sp`` against a constant ``load`` (% at the process input)."""
+    if proc.kind == "integrating":
+        return u0 - load
+    return u0 + (sp - 50.0) / proc.K - load
+
+
+def _nuisance_load(
+    rng: np.random.Generator, kind: str, dur: float, tu: float, size: float
+) -> Disturbance:
+    """The load every class carries: steps, ramps (a staircase), a random walk or coloured
+    noise, of ``size`` % of travel at the process input."""
+    if kind == "steps":
+        n = max(1, int(rng.integers(1, 6)))
+        times = np.sort(rng.uniform(0.0, dur, n))
+        return Disturbance(steps=tuple(zip(times.tolist(), rng.normal(0, size, n).tolist(),
+                                           strict=True)))  # fmt: skip
+    if kind == "ramps":
+        start, length = rng.uniform(0.0, 0.7) * dur, rng.uniform(0.1, 0.4) * dur
+        total, k = float(rng.normal(0, 2 * size)), 40
+        return Disturbance(steps=tuple((start + length * i / k, total / k) for i in range(k)))
+    if kind == "random_walk":
+        return Disturbance(random_walk_std=size / math.sqrt(max(dur, 1.0)) * 2.0)
+    return Disturbance(filtered_noise_std=size, filtered_noise_tau_s=_log_uniform(rng, 0.3, 5) * tu)
+
+
+def _periodic_load(
+    rng: np.random.Generator, period: float, amp: float, gain: float
+) -> tuple[Disturbance, ...]:
+    """A disturbance from outside the loop: a sine, or two (a square-ish wave's first
+    harmonics), entering at the process input or its output; ``amp`` in PV units, ``gain``
+    the PV units a % of travel at the input moves."""
+    where = "load" if rng.uniform() < 0.6 else "output"
+    size = amp / gain if where == "load" else amp
+    first = Disturbance(where=where, sine_amplitude=size, sine_period_s=period)  # type: ignore[arg-type]
+    if rng.uniform() < 0.3:
+        return (first, replace(first, sine_amplitude=amp / 3.0, sine_period_s=period / 3.0))
+    return (first,)
+
+
+def _set_points(
+    rng: np.random.Generator, kind: str, dur: float, ts: float
+) -> tuple[tuple[float, float], ...]:
+    """Set-point moves (time s, value % of span) around 50 %: steps, ramps (staircases) or a
+    cascade master's slowly wandering output."""
+    if kind == "steps":
+        n = int(rng.integers(1, 7))
+        times = np.sort(rng.uniform(0.05, 0.95, n)) * dur
+        vals = 50.0 + rng.choice([-1.0, 1.0], n) * rng.uniform(1.0, 6.0, n)
+        return tuple(zip(times.tolist(), vals.tolist(), strict=True))
+    if kind == "ramps":
+        start, length = rng.uniform(0.05, 0.6) * dur, rng.uniform(0.1, 0.3) * dur
+        end = float(rng.uniform(-6.0, 6.0))
+        k = max(2, min(200, int(length / ts)))
+        return tuple((start + length * i / k, 50.0 + end * (i + 1) / k) for i in range(k))
+    if kind == "cascade":
+        k = max(2, min(400, int(dur / ts / 5)))
+        walk = np.cumsum(rng.normal(0.0, 3.0 / math.sqrt(k), k))
+        return tuple((dur * i / k, 50.0 + float(walk[i])) for i in range(k))
+    return ()
+
+
+def draw_case(seed: int, index: int, attempts: int = 20) -> tuple[CorpusCase, LoopRecord]:
+    """Window ``index`` of corpus ``seed`` and its simulated record: the first of up to
+    ``attempts`` draws whose label shows in the record (``VISIBLE``, output limits)."""
+    cause = CLASSES[index % len(CLASSES)]
+    last: tuple[CorpusCase, LoopRecord] | None = None
+    for attempt in range(attempts):
+        rng = np.random.default_rng([seed, index, attempt])
+        case = _draw(rng, index, cause)
+        rec = simulate_loop(case.config)
+        last = (case, rec)
+        if _shows(case, rec):
+            return last
+    assert last is not None
+    return last
+
+
+def _clamp_share(op: np.ndarray, limit: float | None) -> float:
+    if limit is None:
+        return 0.0
+    return float(np.mean(np.abs(op - limit) <= 1e-9))
+
+
+def _shows(case: CorpusCase, rec: LoopRecord) -> bool:
+    """Whether the record shows its label: the output rests at its limit for 20-90 % of a
+    saturated window and for at most 10 % of any other; a fault's error stands out of the
+    noise (``VISIBLE``); a sticky valve sticks and slips at least twice."""
+    c = case.config.controller
+    limits = [v for v in (c.op_max, c.op_min) if 0.0 < v < 100.0]
+    ends = [float(np.mean(rec.op >= 99.99)), float(np.mean(rec.op <= 0.01))]
+    share = max([_clamp_share(rec.op, v) for v in limits] + ends)
+    if case.cause == "saturation":
+        return 0.2 <= share <= 0.9
+    if share > 0.1:
+        return False
+    if not np.all(np.isfinite(rec.pv)) or float(np.ptp(rec.op)) < 1e-6:
+        return False
+    noise = max(case.config.noise_std, 1e-9)
+    if case.cause in ("stiction", "aggressive_tuning", "external_disturbance"):
+        e = rec.sp - rec.pv
+        if float(np.std(e - np.mean(e))) < VISIBLE * noise:
+            return False
+    if case.cause == "stiction":
+        moves = np.abs(np.diff(rec.mv)) > 1e-9
+        starts = int(np.sum(moves[1:] & ~moves[:-1]))
+        return starts >= 2 or case.family["valve"] == "backlash"
+    return True
+
+
+def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
+    ts = _log_uniform(rng, 0.1, 60.0)
+    pkind = str(rng.choice(FAMILIES["process"], p=[0.3, 0.2, 0.2, 0.1, 0.2]))
+    proc, loop_type = _process(rng, pkind, ts)
+    n = int(_log_uniform(rng, MIN_SAMPLES, MAX_SAMPLES))
+    dur = n * ts
+    noise = _log_uniform(rng, 0.02, 1.0)
+    tc = _log_uniform(rng, 0.7, 2.5)
+    pi = simc_pi_tc(proc, tc)
+    ku, tu = ultimate_gain(proc, pi.Ti_s, ts)
+    # PV units a % of travel moves within the loop's time scale: loads are sized against the
+    # noise they must stand out of
+    gain = abs(proc.K) * (tu if proc.kind == "integrating" else 1.0)
+    load_kind = str(rng.choice(FAMILIES["load"][:4]))
+    load_size = _log_uniform(rng, 1.0, 20.0) * noise / gain
+    loads: tuple[Disturbance, ...] = (_nuisance_load(rng, load_kind, dur, tu, load_size),)
+    sp_kind = str(rng.choice(FAMILIES["sp"], p=[0.35, 0.35, 0.15, 0.15]))
+    sp_steps = _set_points(rng, sp_kind, dur, ts)
+    valve, S, J = "linear", 0.0, 0.0
+    if cause == "stiction":
+        valve = str(rng.choice(FAMILIES["valve"][1:]))
+        S = _log_uniform(rng, 0.2, 10.0)
+        J = 0.0 if valve == "backlash" else float(rng.uniform(0.0, 1.0)) * S
+        # the cycle a sticky valve drives moves PV by about the gain times the band: a noise
+        # larger than that hides the fault, which no record can then show
+        swing = S * (proc.K * 20.0 * ts if proc.kind == "integrating" else proc.K)
+        noise = min(noise, swing / _log_uniform(rng, 2.0, 20.0))
+        load_size = min(load_size, S, _log_uniform(rng, 1.0, 20.0) * noise / gain)
+        loads = (_nuisance_load(rng, load_kind, dur, tu, load_size),)
+    elif cause == "aggressive_tuning":
+        pi = replace(pi, Kc=float(rng.uniform(0.7, 0.95)) * ku)
+        # a loop close to its stability limit rings at its own period on whatever load comes
+        loads = (
+            _nuisance_load(rng, "coloured", dur, tu, _log_uniform(rng, 1.0, 6.0) * noise / gain),
+        )
+    elif cause == "sluggish_tuning":
+        pi = replace(pi, Kc=pi.Kc * _log_uniform(rng, 0.08, 0.35),
+                     Ti_s=pi.Ti_s * _log_uniform(rng, 2.0, 6.0))  # fmt: skip
+        if sp_kind == "constant":
+            # a sluggish loop shows only in how it answers a load or a set-point move
+            loads = (_nuisance_load(rng, "steps", dur, tu, 2.0 * load_size),)
+    elif cause == "external_disturbance":
+        load_kind = "periodic"
+        period = min(_log_uniform(rng, 0.3, 20.0) * tu, dur / 5.0)
+        amp = _log_uniform(rng, 3.0, 15.0) * noise
+        loads = (*_periodic_load(rng, max(period, 4 * ts), amp, gain), loads[0])
+    limit_kind = str(rng.choice(FAMILIES["limit"], p=[0.4, 0.2, 0.4]))
+    u0 = float(rng.uniform(15.0, 85.0))
+    steady = _steady_op(proc, 50.0, 0.0, u0)
+    op_min, op_max = 0.0, 100.0
+    high = rng.uniform() < 0.7
+    if cause == "saturation":
+        limit = (
+            float(rng.uniform(5.0, 95.0)) if limit_kind != "at_100" else (100.0 if high else 0.0)
+        )
+        if limit_kind == "free":
+            limit_kind = "anywhere"
+        # a load early on asks for 2-15 % more output than the limit gives
+        need = (
+            (limit + _log_uniform(rng, 2.0, 15.0))
+            if high
+            else (limit - _log_uniform(rng, 2.0, 15.0))
+        )
+        at = float(rng.uniform(0.05, 0.5)) * dur
+        u0 = float(np.clip(limit - (10.0 if high else -10.0), 5.0, 95.0))
+        steady = _steady_op(proc, 50.0, 0.0, u0)
+        loads = (Disturbance(steps=((at, steady - need),)), *loads[1:])
+        sp_steps = tuple((t, v) for t, v in sp_steps if t < at)
+        if high:
+            op_max = limit
+        else:
+            op_min = limit
+    elif limit_kind == "anywhere":
+        margin = _log_uniform(rng, 3.0, 30.0)
+        if high:
+            op_max = min(99.0, steady + margin)
+        else:
+            op_min = max(1.0, steady - margin)
+    if proc.K < 0 or rng.uniform() < 0.2:
+        # a direct-acting loop: the process gain and the controller's both negative
+        proc = replace(proc, K=-abs(proc.K))
+        pi = replace(pi, Kc=-abs(pi.Kc))
+        u0 = 100.0 - u0
+        op_min, op_max = 100.0 - op_max, 100.0 - op_min
+        loads = tuple(_negate(d) for d in loads)
+    pi = PIController(Kc=pi.Kc, Ti_s=pi.Ti_s, op_min=op_min, op_max=op_max)
+    rec_kind = str(rng.choice(FAMILIES["recording"], p=[0.5, 0.25, 0.25]))
+    quantum = _log_uniform(rng, 0.5, 3.0) * noise if rec_kind == "quantised" else 0.0
+    compression = _log_uniform(rng, 0.5, 3.0) * noise if rec_kind == "compressed" else 0.0
+    warmup = min(20_000, int(20 * tu / ts) + 200)
+    # disturbances run on the simulation's clock, which starts with the warm-up
+    loads = tuple(replace(d, steps=tuple((t + warmup * ts, v) for t, v in d.steps)) for d in loads)
+    cfg = LoopConfig(
+        process=proc,
+        controller=pi,
+        valve=valve,  # type: ignore[arg-type]
+        S=S,
+        J=J,
+        disturbances=loads,
+        noise_std=noise,
+        sp_steps=sp_steps,
+        u0=u0,
+        sample_time_s=ts,
+        n_samples=n,
+        warmup_samples=warmup,
+        pv_quantum=quantum,
+        pv_compression=compression,
+        seed=int(rng.integers(1 << 30)),
+    )
+    family = {"process": pkind, "valve": valve, "load": load_kind, "sp": sp_kind,
+              "limit": limit_kind, "recording": rec_kind}  # fmt: skip
+    return CorpusCase(index, cause, loop_type, cfg, family, tu)
+
+
+def _negate(d: Disturbance) -> Disturbance:
+    """The same disturbance acting the other way (a direct-acting loop's load)."""
+    return replace(
+        d,
+        sine_amplitude=-d.sine_amplitude,
+        steps=tuple((t, -s) for t, s in d.steps),
+    )
+
+
+def corpus(seed: int, n: int, start: int = 0) -> Iterator[tuple[CorpusCase, LoopRecord]]:
+    """Windows ``start`` to ``start + n`` of corpus ``seed`` with their records."""
+    for i in range(start, start + n):
+        yield draw_case(seed, i)

@@ -1,0 +1,97 @@
+"""The learned decision (issue 46): the simulated corpus, the exported trees, the calibrated
+probabilities and their evidence, and the too-short rule."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from plantcheck.diagnosis import ChainParams, diagnose
+from plantcheck.diagnosis.cause_model import decide, shipped_cause_model
+from plantcheck.diagnosis.evidence import FEATURE_NAMES, FEATURES
+from plantcheck.simulator.cases import simc_pi
+from plantcheck.simulator.corpus import CLASSES, FAMILIES, draw_case
+from plantcheck.simulator.loop import Disturbance, LoopConfig, Process, simulate_loop
+
+
+def test_corpus_windows_are_reproducible_balanced_and_labelled_by_family() -> None:
+    cases = [draw_case(7, i) for i in range(12)]
+    assert Counter(c.cause for c, _ in cases) == {c: 2 for c in CLASSES}
+    for case, rec in cases:
+        assert set(case.family) == set(FAMILIES)
+        assert all(case.family[k] in FAMILIES[k] for k in FAMILIES)
+        assert rec.pv.size == case.config.n_samples and np.all(np.isfinite(rec.pv))
+    again, rec2 = draw_case(7, 5)
+    assert again.config == cases[5][0].config
+    np.testing.assert_array_equal(rec2.pv, cases[5][1].pv)
+
+
+def test_saturated_corpus_windows_rest_at_their_limit() -> None:
+    for i in (5, 11, 17):
+        case, rec = draw_case(3, i)
+        assert case.cause == "saturation"
+        c = case.config.controller
+        at = np.isclose(rec.op, c.op_max) | np.isclose(rec.op, c.op_min)
+        assert 0.2 <= float(np.mean(at)) <= 0.9, case.family
+
+
+def test_the_shipped_model_reads_every_input_and_adds_up() -> None:
+    """Saabas contributions and the trees' base values add up to the raw score, and the
+    calibrated probabilities sum to one."""
+    model = shipped_cause_model()
+    assert model is not None, "diagnosis/models/cause_model.npz is missing: plantcheck model fit"
+    assert model.features == FEATURE_NAMES and model.classes == CLASSES
+    assert 0.2 < model.temperature < 5.0
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        x = rng.normal(size=len(FEATURE_NAMES))
+        x[rng.uniform(size=x.size) < 0.3] = np.nan
+        d = decide(model, x)
+        np.testing.assert_allclose(d.base + d.contributions.sum(axis=1), d.raw, atol=1e-9)
+        assert abs(float(d.probabilities.sum()) - 1.0) < 1e-12
+
+
+def _sticky() -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    proc = Process("fopdt", K=1.0, tau_s=10.0, theta_s=2.0)
+    cfg = LoopConfig(process=proc, controller=simc_pi(proc), valve="kano", S=4.0, J=2.0,
+                     noise_std=0.05, n_samples=2000, warmup_samples=400, seed=3)  # fmt: skip
+    r = simulate_loop(cfg)
+    return r.pv, r.op, r.sp, 1.0
+
+
+def test_probabilities_and_evidence_in_the_json() -> None:
+    pv, op, sp, ts = _sticky()
+    for decide_by in ("rules", "learned"):
+        d = diagnose(pv, op, ts, sp=sp, loop_type="flow", quantify=False,
+                     params=ChainParams(decide_by=decide_by))  # fmt: skip
+        out = d.to_dict()
+        assert out["cause"] == "stiction", (decide_by, out["notes"])
+        probs = out["probabilities"]
+        assert set(probs) == set(CLASSES) and abs(sum(probs.values()) - 1.0) < 0.01
+        assert out["confidence"] == round(probs["stiction"], 2)
+        assert out["evidence"] and all(e["name"] in FEATURES for e in out["evidence"])
+        sizes = [abs(e["contribution"]) for e in out["evidence"]]
+        assert sizes == sorted(sizes, reverse=True)
+
+
+def test_without_a_model_the_rules_decide_alone() -> None:
+    pv, op, sp, ts = _sticky()
+    d = diagnose(pv, op, ts, sp=sp, loop_type="flow", quantify=False,
+                 params=ChainParams(cause_model=None))  # fmt: skip
+    assert d.cause == "stiction" and d.probabilities is None and d.evidence is None
+
+
+def test_too_short_to_judge_is_not_ok() -> None:
+    """Issue 46 item 4: a healthy loop's 200 samples do not show that it is healthy."""
+    proc = Process("fopdt", K=1.0, tau_s=20.0, theta_s=5.0)
+    cfg = LoopConfig(process=proc, controller=simc_pi(proc), noise_std=0.2, n_samples=3000,
+                     disturbances=(Disturbance(filtered_noise_std=0.5),), seed=2)  # fmt: skip
+    r = simulate_loop(cfg)
+    long = diagnose(r.pv, r.op, 1.0, sp=r.sp, loop_type="temperature", quantify=False)
+    assert long.cause == "ok", long.notes
+    for n in (120, 199):
+        short = diagnose(r.pv[:n], r.op[:n], 1.0, sp=r.sp[:n], loop_type="temperature")
+        assert short.cause == "insufficient_data", short.notes
+        assert any("300 needed" in note for note in short.notes)
+        assert short.probabilities is None
