@@ -40,6 +40,8 @@ class Cause(StrEnum):
     positioner_tuning = "positioner_tuning"
     air_leakage = "air_leakage"
     actuator_undersized = "actuator_undersized"
+    performance_degraded = "performance_degraded"
+    """Variability far above the loop's own baseline with no cause found (issue 46)."""
 
 
 class State(StrEnum):
@@ -69,6 +71,7 @@ class ActionCode(StrEnum):
     check_air_supply = "check_air_supply"
     check_actuator_sizing = "check_actuator_sizing"
     collect_more_data = "collect_more_data"
+    investigate_degradation = "investigate_degradation"
     investigate = "investigate"
 
 

@@ -5,6 +5,7 @@ stem position's coverage), :func:`diagnose` (the PCU standard chain) and
 :func:`detect_oscillation` (oscillation test on any one signal).
 """
 
+from plantcheck.diagnosis.baseline import Baseline, baseline_from
 from plantcheck.diagnosis.chain import ChainParams, diagnose, diagnose_advanced
 from plantcheck.diagnosis.chain_choice import diagnose_loop
 from plantcheck.diagnosis.oscillation import (
@@ -18,10 +19,12 @@ from plantcheck.diagnosis.stiction_vote import LOOP_TYPES
 __all__ = [
     "CAUSES",
     "LOOP_TYPES",
+    "Baseline",
     "ChainParams",
     "Diagnosis",
     "OscillationParams",
     "OscillationResult",
+    "baseline_from",
     "detect_oscillation",
     "diagnose",
     "diagnose_advanced",

@@ -15,11 +15,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from plantcheck.diagnosis.acf_decay import acf_decay_ratio
+from plantcheck.diagnosis.baseline import DEGRADED_RATIO, Baseline, variability
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
 from plantcheck.diagnosis.cause_model import CauseModel, decide, shipped_cause_model
 from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
 from plantcheck.diagnosis.ellipse import apparent_stiction
-from plantcheck.diagnosis.evidence import evidence_vector, window_evidence
+from plantcheck.diagnosis.evidence import evidence_vector, shape_evidence, window_evidence
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
 from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
 from plantcheck.diagnosis.oscillation import (
@@ -189,6 +190,8 @@ class _Run:
     """The stiction tests run on an oscillating window."""
     decay: float | None = None
     """The ACF decay ratio of the cycle, where read."""
+    baseline: Baseline | None = None
+    """The loop's healthy variability, when known."""
 
 
 @dataclass(frozen=True)
@@ -214,6 +217,7 @@ def _standard(
     params: ChainParams | None = None,
     quantify: bool = True,
     exclude_stiction: bool = False,
+    baseline: Baseline | None = None,
 ) -> DiagnosisDraft:
     """Run the standard chain on one window; the draft of its diagnosis.
 
@@ -238,6 +242,9 @@ def _standard(
     exclude_stiction:
         The valve is known to be healthy (advanced chain): an oscillation is split between
         tuning and disturbance only.
+    baseline:
+        The loop's variability in healthy operation (``baseline.Baseline``): a loop whose
+        error varies ``DEGRADED_RATIO`` times more is not ``ok``.
     """
     if loop_type not in LOOP_TYPES:
         raise ValueError(f"loop_type must be one of {', '.join(LOOP_TYPES)}, not {loop_type!r}")
@@ -258,7 +265,7 @@ def _standard(
     diag.indices["hagglund_load_count"] = None
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
-    run = _Run(win, ts, loop_type, p, quantify, exclude_stiction, diag)
+    run = _Run(win, ts, loop_type, p, quantify, exclude_stiction, diag, baseline=baseline)
     return _run_chain(run).diag
 
 
@@ -272,9 +279,32 @@ def _run_chain(run: _Run) -> _Run:
         else:
             _judge_quiet_loop(run, stretch)
     if p.cause_model is not None and _judged(win):
+        _gather(run)
         _weigh(run, p.cause_model)
     _too_short(run)
+    if _judged(win):
+        _against_baseline(run)
     return run
+
+
+def _gather(run: _Run) -> None:
+    """The evidence the rules' path did not need (issue 46): the oscillation test on the
+    settled stretch of a window the window checks or the stick-slip events decided, and the
+    stiction tests wherever a period was found. Run on a scratch draft: the diagnosis keeps
+    only what its own path wrote."""
+    win, p = run.win, run.p
+    if run.stretch is None and win.segment[1] - win.segment[0] >= p.window.min_samples:
+        scratch = DiagnosisDraft(run.loop_type, "standard", run.diag.samples, run.ts, "ok", 0.0,
+                                 False)  # fmt: skip
+        run.stretch = _find_oscillation(replace(run, diag=scratch))
+    st = run.stretch
+    if st is None or st.osc.period_s is None or run.tests or run.exclude_stiction:
+        return
+    a, b = st.a, st.b
+    run.tests = run_stiction_tests(win.sp[a:b] - win.pv[a:b], win.op[a:b], win.pv[a:b], run.ts,
+                                   st.osc, run.loop_type, p)  # fmt: skip
+    if run.decay is None:
+        _decay_ratio(run, st)
 
 
 def _judged(win: WindowReport) -> bool:
@@ -639,9 +669,12 @@ def diagnose(
     params: ChainParams | None = None,
     quantify: bool = True,
     exclude_stiction: bool = False,
+    baseline: Baseline | None = None,
 ) -> Diagnosis:
     """Run the standard chain on one window (arguments: ``_standard``): the frozen diagnosis."""
-    return _standard(pv, op, ts, sp, auto, loop_type, params, quantify, exclude_stiction).freeze()
+    return _standard(
+        pv, op, ts, sp, auto, loop_type, params, quantify, exclude_stiction, baseline
+    ).freeze()
 
 
 def _events_vote(res: StickSlipResult, params: StickSlipParams) -> StictionTestResult:
@@ -816,6 +849,8 @@ def _evidence(run: _Run) -> dict[str, float | None]:
         ev[name] = ind.get(name)
     ev["load_count"] = ind.get("hagglund_load_count")
     ev["vote_score"] = ind.get("stiction_vote")
+    if ev["vote_score"] is None and run.tests:
+        ev["vote_score"] = vote(list(run.tests.values()), run.p.vote).score
     ev["decay_ratio"] = run.decay
     st = run.stretch
     if st is not None:
@@ -831,6 +866,18 @@ def _evidence(run: _Run) -> dict[str, float | None]:
                 ev["period_over_ti"] = osc.period_s / st.pi.ti_s
         if osc.amplitude is not None and osc.noise_sigma > 0:
             ev["amplitude_noise"] = osc.amplitude / osc.noise_sigma
+    if st is not None and st.b - st.a > 8:
+        pi = st.pi if st.pi.fit >= run.p.tuning.pi_min_fit else None
+        ti = pi.ti_s / run.ts if pi is not None and pi.ti_s else None
+        ev.update(
+            shape_evidence(
+                win.pv[st.a : st.b],
+                win.op[st.a : st.b],
+                win.sp[st.a : st.b],
+                pi.kc if pi is not None else None,
+                ti,
+            )
+        )
     for name, res in run.tests.items():
         if name in FEATURE_TESTS:
             ev[name] = res.value
@@ -900,6 +947,47 @@ def _weigh(run: _Run, model: CauseModel) -> None:
     diag.actions = [_stiction_action(diag)]
 
 
+def _against_baseline(run: _Run) -> None:
+    """The window's variability (``indices.error_std``, ``op_std``), and against the loop's
+    baseline (``variability_ratio``): an ``ok`` far from its own normal takes the cause the
+    model finds most probable after ``ok`` when that has p >= ``DEGRADED_MIN_P``, else
+    ``performance_degraded`` (issue 46 item 5)."""
+    win, diag = run.win, run.diag
+    e_sd, op_sd = variability(win.pv, win.op, win.sp)
+    diag.indices["error_std"] = e_sd
+    diag.indices["op_std"] = op_sd
+    if run.baseline is None:
+        return
+    ratio = e_sd / run.baseline.error_sd
+    diag.indices["variability_ratio"] = ratio
+    if diag.cause != "ok" or not ratio >= DEGRADED_RATIO:
+        return
+    note = (
+        f"the error varies {ratio:.1f} x its baseline (σ {e_sd:.3g} against "
+        f"{run.baseline.error_sd:.3g}{', ' + run.baseline.source if run.baseline.source else ''}"
+        f"; far from normal at {DEGRADED_RATIO:g} x)"
+    )
+    probs = dict(diag.probabilities or {})
+    probs.pop("ok", None)
+    best = max(probs, key=lambda c: probs[c]) if probs else None
+    if best is not None and probs[best] >= DEGRADED_MIN_P:
+        diag.cause, diag.confidence = best, probs[best]
+        diag.notes.append(f"{note}: read as {best}, the most probable cause after ok")
+        diag.stiction["detected"] = best == "stiction"
+        diag.actions = [_stiction_action(diag)]
+        return
+    diag.cause, diag.confidence = "performance_degraded", 0.6
+    diag.probabilities = diag.evidence = None
+    diag.notes.append(f"{note}, and no test names a cause")
+    action = action_for("performance_degraded")
+    action["text"] = action["text"].replace("far more", f"{ratio:.1f} times more")
+    diag.actions = [action]
+
+
+DEGRADED_MIN_P = 0.2
+"""A loop far from its baseline takes the model's next cause only when it is this probable."""
+
+
 def _rounded(x: float | None) -> float | None:
     """An evidence value to 4 significant digits (what the tests' indices can mean)."""
     return None if x is None or not np.isfinite(x) else float(f"{x:.4g}")
@@ -934,6 +1022,7 @@ def diagnose_advanced(
     loop_type: str = "other",
     params: ChainParams | None = None,
     quantify: bool = True,
+    baseline: Baseline | None = None,
 ) -> Diagnosis:
     """The advanced chain (methods.md §7.4): the valve first, from OP and the stem position MV.
 
@@ -945,7 +1034,8 @@ def diagnose_advanced(
     loop-level pass only checks the window, finds the oscillation and splits its cause.
     """
     p = params or ChainParams()
-    std = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True)
+    std = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True,
+                    baseline=baseline)  # fmt: skip
     std.chain = "advanced"
     if std.cause in WINDOW_VERDICTS:
         std.notes.append("valve not assessed: the window cannot be judged")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from plantcheck.diagnosis.baseline import Baseline
 from plantcheck.diagnosis.chain import ChainParams, diagnose, diagnose_advanced
 from plantcheck.diagnosis.result import Diagnosis
 from plantcheck.diagnosis.signal_tools import FloatArray
@@ -30,6 +31,7 @@ def diagnose_loop(
     quantify: bool = True,
     min_mv_coverage: float = MIN_MV_COVERAGE,
     params: ChainParams | None = None,
+    baseline: Baseline | None = None,
 ) -> Diagnosis:
     """The advanced chain when MV covers ``min_mv_coverage`` of the window, else the standard
     one (arguments as :func:`diagnose`; MV in % of travel, NaN = gap; ``params`` None: the
@@ -37,11 +39,11 @@ def diagnose_loop(
     coverage = float(np.isfinite(mv).mean()) if mv is not None and mv.size else 0.0
     if mv is not None and coverage >= min_mv_coverage:
         return diagnose_advanced(
-            pv, op, mv, ts, sp=sp, auto=auto, loop_type=loop_type, params=params, quantify=quantify
-        )
-    d = diagnose(
-        pv, op, ts, sp=sp, auto=auto, loop_type=loop_type, params=params, quantify=quantify
-    )
+            pv, op, mv, ts, sp=sp, auto=auto, loop_type=loop_type, params=params,
+            quantify=quantify, baseline=baseline,
+        )  # fmt: skip
+    d = diagnose(pv, op, ts, sp=sp, auto=auto, loop_type=loop_type, params=params,
+                 quantify=quantify, baseline=baseline)  # fmt: skip
     if mv is not None:
         d = d.with_notes_first(
             [

@@ -15,6 +15,9 @@ import numpy as np
 
 from plantcheck.diagnosis.signal_tools import FloatArray, noise_sigma
 
+EVIDENCE_VERSION = 3
+"""Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn."""
+
 FEATURES: dict[str, str] = {
     "log_samples": "log10 of the window's samples",
     "integrating": "1 for a level (integrating) loop, else 0",
@@ -55,6 +58,13 @@ FEATURES: dict[str, str] = {
     "event_reversals": "successive events in opposite directions",
     "event_travel": "median OP travel at breakaway, % of OP's range",
     "unresponsive": "1 when the valve did not answer a large OP travel",
+    "error_kurtosis": "kurtosis of the detrended error (noise 3, a sine 1.5, a square wave 1)",
+    "error_skew": "|skewness| of the detrended error",
+    "op_kurtosis": "kurtosis of the detrended OP",
+    "pv_jump": "largest |ΔPV| over the σ of ΔPV (a slip stands out of the increments)",
+    "dop_dpv_corr": "correlation of OP's and PV's increments",
+    "kc_share": "identified Kc × σ(error) over σ(OP): the proportional share of OP's moves",
+    "acf_time_over_ti": "lag where the error's ACF falls below 1/e, over the integral time",
 }
 """Each evidence entry's name and meaning, in the order of the model's input vector."""
 
@@ -89,6 +99,61 @@ def window_evidence(
         "pv_unique_fraction": float(indices.get("pv_unique_fraction", math.nan)),
         "pv_unchanged_fraction": float(indices.get("pv_unchanged_fraction", math.nan)),
         "sp_steps": float(indices.get("sp_steps", 0.0)),
+    }
+
+
+def _kurtosis(x: FloatArray) -> float:
+    d = x - np.mean(x)
+    v = float(np.mean(d * d))
+    return float(np.mean(d**4)) / (v * v) if v > 0 else math.nan
+
+
+def _skew(x: FloatArray) -> float:
+    d = x - np.mean(x)
+    v = float(np.mean(d * d))
+    return abs(float(np.mean(d**3))) / v**1.5 if v > 0 else math.nan
+
+
+def _acf_time(x: FloatArray) -> float | None:
+    """First lag (samples) where the ACF of ``x`` falls below 1/e, by FFT; None if never."""
+    d = x - np.mean(x)
+    n = d.size
+    if n < 8 or not np.any(d):
+        return None
+    f = np.fft.rfft(d, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[:n]
+    below = np.flatnonzero(acf < acf[0] / math.e)
+    return float(below[0]) if below.size else None
+
+
+def shape_evidence(
+    pv: FloatArray, op: FloatArray, sp: FloatArray, kc: float | None, ti_samples: float | None
+) -> dict[str, float | None]:
+    """Distribution and increment statistics of the analysed stretch: the error's and OP's
+    kurtosis (Choudhury et al. 2004 read non-Gaussianity as non-linearity), PV's largest jump
+    against its increments, how OP's and PV's increments go together, the proportional
+    share of OP's moves and the error's correlation time against the integral time."""
+    e = sp - pv
+    t = np.arange(e.size, dtype=np.float64)
+    ed = e - np.polyval(np.polyfit(t, e, 1), t) if e.size > 2 else e
+    opd = op - np.polyval(np.polyfit(t, op, 1), t) if op.size > 2 else op
+    dpv, dop = np.diff(pv), np.diff(op)
+    sd_dpv, sd_dop = float(np.std(dpv)), float(np.std(dop))
+    sd_e, sd_op = float(np.std(ed)), float(np.std(opd))
+    corr = (
+        float(np.mean((dpv - dpv.mean()) * (dop - dop.mean()))) / (sd_dpv * sd_dop)
+        if sd_dpv > 0 and sd_dop > 0
+        else None
+    )
+    tau = _acf_time(ed)
+    return {
+        "error_kurtosis": _kurtosis(ed),
+        "error_skew": _skew(ed),
+        "op_kurtosis": _kurtosis(opd),
+        "pv_jump": float(np.max(np.abs(dpv - dpv.mean()))) / sd_dpv if sd_dpv > 0 else None,
+        "dop_dpv_corr": corr,
+        "kc_share": abs(kc) * sd_e / sd_op if kc is not None and sd_op > 0 else None,
+        "acf_time_over_ti": tau / ti_samples if tau is not None and ti_samples else None,
     }
 
 

@@ -84,6 +84,11 @@ _ACTIONS: dict[Cause, tuple[ActionCode, str]] = {
         ActionCode.check_actuator_sizing,
         "Check actuator size and air supply: the stem cannot move as fast as the controller asks.",
     ),
+    Cause.performance_degraded: (
+        ActionCode.investigate_degradation,
+        "Investigate: the control error varies far more than in the loop's own healthy weeks, "
+        "and no cause shows in this window.",
+    ),
     Cause.insufficient_data: (
         ActionCode.collect_more_data,
         "Collect a longer, steady window (constant set point, automatic mode).",

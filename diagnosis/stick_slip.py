@@ -545,7 +545,8 @@ def _candidate(
     slope, wander = sig.line(s, a + 1)
     t_half = max(1, int(np.argmax(seg >= 0.5 * size)))
     ratio = (a - s) / t_half
-    if size < p.slip_wander * wander or ratio < p.min_stick_slip_ratio:
+    if size <= 0.0 or size < p.slip_wander * wander or ratio < p.min_stick_slip_ratio:
+        # a PV that never moves toward the slip (a flat, held or interpolated record) has none
         return None
     rate = 0.5 * size / t_half / max(abs(slope), 1e-300)
     follow = toward * float(sig.ys[a] - sig.ys[s]) / size

@@ -61,6 +61,9 @@ class WindowParams:
     the step (or 3 noise σ) [R, methods §3.3: T_s within ±5-10 %]."""
     step_merge_samples: int = 5
     """Set-point moves closer than this many samples are one step [R]."""
+    flat_pv_op_travel: float = 1.0
+    """OP moving over this many % of travel under a flat PV is named as a frozen transmitter
+    or a valve that does not move (issue 46 item 7)."""
     min_clamp_samples: int = 10
     """An output at its own extreme for this many samples in a row rests at a limit [R]."""
     clamp_error_noise: float = 3.0
@@ -223,6 +226,7 @@ def _measurement(w: _Window, p: WindowParams) -> WindowReport | None:
     w.pv_range = float(np.ptp(w.pv))
     if w.pv_range == 0.0:
         w.notes.append("PV is constant over the window (frozen sensor or no measurement)")
+        _flat_pv_while_op_moves(w, p)
         return w.stop("data_quality")
     unchanged = float(np.mean(np.diff(w.pv) == 0.0))
     w.indices["pv_unchanged_fraction"] = unchanged
@@ -231,12 +235,33 @@ def _measurement(w: _Window, p: WindowParams) -> WindowReport | None:
             f"PV unchanged on {100 * unchanged:.0f} % of samples (frozen sensor or heavy "
             "historian compression)"
         )
+        _flat_pv_while_op_moves(w, p)
         return w.stop("data_quality")
     w.n_levels = int(np.unique(w.pv).size)
     unique_frac = w.n_levels / w.n
     w.indices["pv_unique_fraction"] = unique_frac
     w.quantised = unique_frac < p.quantised_unique_fraction
     return None
+
+
+def _flat_pv_while_op_moves(w: _Window, p: WindowParams) -> None:
+    """A PV that stays flat while OP moves (issue 46 item 7): a frozen transmitter or a valve
+    that does not move, with the evidence for each. A live measurement carries noise and the
+    process' own drift even behind a seized valve; a transmitter that froze (or a signal held
+    by the historian) repeats its last value exactly. OP's range is in % of travel."""
+    op = w.op[np.isfinite(w.op)]
+    travel = float(np.ptp(op)) if op.size else 0.0
+    if travel < p.flat_pv_op_travel:
+        return
+    pv = w.pv[np.isfinite(w.pv)]
+    exact = float(np.mean(np.diff(pv) == 0.0)) if pv.size > 1 else 1.0
+    w.notes.append(
+        f"OP moved over {travel:.1f} % of travel while PV stayed flat: either the transmitter "
+        f"is frozen (PV repeats its value exactly on {100 * exact:.0f} % of samples; a live "
+        "measurement shows noise even when the process stands still) or the valve does not "
+        "move (seized, or shut against its seat, with the process holding still); check the "
+        "transmitter's live reading first, then stroke the valve"
+    )
 
 
 def _output(w: _Window, p: WindowParams) -> WindowReport | None:

@@ -31,8 +31,8 @@ from scipy.optimize import minimize_scalar
 
 from plantcheck.diagnosis.cause_model import CauseModel, decide
 from plantcheck.diagnosis.chain import chain_evidence
-from plantcheck.diagnosis.evidence import FEATURE_NAMES, evidence_vector
-from plantcheck.simulator.corpus import CLASSES, FAMILY_KEYS, draw_case
+from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
+from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, FAMILY_KEYS, draw_case
 
 FIT_SEED, CALIBRATION_SEED, CHECK_SEED = 101, 202, 303
 """The corpus seeds of the fit, the temperature and the check figures: never the same."""
@@ -70,8 +70,12 @@ class CorpusEvidence:
 def _one(args: tuple[int, int]) -> tuple[int, str, list[float] | None, dict[str, str], int]:
     seed, index = args
     case, rec = draw_case(seed, index)
-    rules, ev = chain_evidence(rec.pv, rec.op, case.config.sample_time_s, sp=rec.sp,
-                               loop_type=case.loop_type)  # fmt: skip
+    try:
+        rules, ev = chain_evidence(rec.pv, rec.op, case.config.sample_time_s, sp=rec.sp,
+                                   loop_type=case.loop_type)  # fmt: skip
+    except Exception as exc:
+        # a chain that fails on a simulated window is a bug: name the window that shows it
+        raise RuntimeError(f"corpus seed {seed} window {index} ({case.family}): {exc!r}") from exc
     vec = None if ev is None else evidence_vector(ev).tolist()
     return CLASSES.index(case.cause), rules, vec, case.family, case.config.n_samples
 
@@ -85,7 +89,8 @@ def corpus_evidence(
 ) -> CorpusEvidence:
     """The evidence of windows 0..n-1 of corpus ``seed``, computed on ``jobs`` processes (all
     cores by default) and kept in ``cache`` (a folder) when given."""
-    path = cache / f"corpus-{seed}-{n}-{len(FEATURE_NAMES)}.npz" if cache else None
+    name = f"corpus-v{CORPUS_VERSION}.{EVIDENCE_VERSION}-{seed}-{n}.npz"
+    path = cache / name if cache else None
     if path is not None and path.is_file():
         with np.load(path, allow_pickle=False) as z:
             fam = json.loads(bytes(z["family"]).decode())

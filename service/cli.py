@@ -191,9 +191,18 @@ def diagnose_cmd(
             "probability; learned: the model fitted on simulated plants names it.",
         ),
     ] = Decision.rules,
+    baseline: Annotated[
+        Path | None,
+        typer.Option(
+            "--baseline",
+            help="A record of the same loop in healthy operation (same format): a window "
+            "whose error varies 3 times more is not ok.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
-    from plantcheck.diagnosis import ChainParams, diagnose_loop
+    from plantcheck.diagnosis import ChainParams, baseline_from, diagnose_loop
 
     rec = _load(file, sample_time, ("pv", "op"), max_samples)
     sl, extra = _tail(rec, max_samples)
@@ -203,8 +212,18 @@ def diagnose_cmd(
     auto = rec.auto[sl] if rec.auto is not None else None
     mv = rec.signals["mv"][sl] if "mv" in rec.signals else None
     params = ChainParams(decide_by=decision.value)
+    normal = None
+    if baseline is not None:
+        base = _load(baseline, sample_time, ("pv", "op"), max_samples)
+        try:
+            normal = baseline_from(base.signals["pv"], base.signals["op"], base.signals.get("sp"),
+                                   source=f"from {baseline.name}")  # fmt: skip
+        except ValueError as exc:
+            raise fail(
+                f"{baseline}: {exc}; give --baseline a record of the loop in normal operation"
+            ) from None
     d = diagnose_loop(pv, op, rec.sample_time_s, sp=sp, mv=mv, auto=auto,
-                      loop_type=loop_type.value, params=params)  # fmt: skip
+                      loop_type=loop_type.value, params=params, baseline=normal)  # fmt: skip
     d = d.with_notes_first(rec.notes + extra)
     _emit(d.to_dict() if as_json else _summary(d), as_json)
 

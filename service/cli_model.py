@@ -50,7 +50,7 @@ def fit_cmd(
     try:
         import lightgbm  # noqa: F401
     except ImportError:
-        fail("model fit needs LightGBM: pip install -e '.[fit]'")
+        raise fail("model fit needs LightGBM: pip install -e '.[fit]'") from None
     from plantcheck.service.cause_model_fit import fit_model, save_model
 
     t0 = time.monotonic()

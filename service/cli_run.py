@@ -174,6 +174,8 @@ async def _work(cfg: Config, hint: str, concurrency: int) -> None:
         confirm=d.confirm,
         quantify_every_s=d.quantify_every_s,
         window_cache_mb=d.window_cache_mb,
+        baseline_days=d.baseline_days,
+        baseline_min=d.baseline_min,
     )
     try:
         await diagnoser.open_pool()

@@ -187,6 +187,10 @@ class SchedulerConfig(_Strict):
     """Consecutive diagnoses that must agree on a new cause before a loop's state changes."""
     quantify_every_s: float = Field(3600.0, ge=0, le=MAX_WINDOW_S)
     """Shortest time between two S/J estimates of one valve (0: every diagnosis)."""
+    baseline_days: float = Field(28.0, ge=0, le=365)
+    """The loop's own normal: its healthy diagnoses over this many days (0: no baseline)."""
+    baseline_min: int = Field(6, ge=1, le=10_000)
+    """Healthy diagnoses needed before the baseline is used."""
     engine: Literal["local", "queue"] = "local"
     """Where the diagnosis runs: ``local``, this process's worker pool (any database);
     ``queue``, jobs on the PostgreSQL job queue run by ``plantcheck worker`` processes on any

@@ -58,6 +58,8 @@ def make_scheduler(
         confirm=d.confirm,
         quantify_every_s=d.quantify_every_s,
         window_cache_mb=d.window_cache_mb,
+        baseline_days=d.baseline_days,
+        baseline_min=d.baseline_min,
     )
 
 

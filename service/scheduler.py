@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
+import numpy as np
 from apscheduler.schedulers.asyncio import AsyncIOScheduler
 
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
@@ -46,6 +47,7 @@ from plantcheck.storage.results import (
     QUANTIFIED_CAUSES,
     PendingVerdict,
     Verdict,
+    healthy_error_sd,
     loop_states,
     recent_history,
 )
@@ -105,6 +107,14 @@ class LoopJobState:
     """When (monotonic s) S and J may next be estimated for this loop."""
     quantify_backoff_s: float = 0.0
     """Wait after the last unreliable estimate (0 after a reliable one)."""
+    baseline: tuple[float, str] | None = None
+    """The loop's healthy error σ and where it came from (``BASELINE_REFRESH_S``)."""
+    baseline_due: float = -float("inf")
+    """When (monotonic s) the baseline is next read from the store."""
+
+
+BASELINE_REFRESH_S = 6 * 3600.0
+"""How often a loop's baseline is read again from its stored diagnoses (s)."""
 
 
 def _now_us() -> int:
@@ -128,8 +138,12 @@ class DiagnosisScheduler:
         confirm: int = 2,
         quantify_every_s: float = 3600.0,
         window_cache_mb: float = 256.0,
+        baseline_days: float = 28.0,
+        baseline_min: int = 6,
     ) -> None:
         self.store = store
+        self.baseline_days = baseline_days
+        self.baseline_min = baseline_min
         self.schedules = {s.name: s for s in schedules}
         self.workers = workers
         self.metrics = metrics or ServiceMetrics()
@@ -290,6 +304,7 @@ class DiagnosisScheduler:
         # only once a second window finds the valve sticky: one odd window costs no estimate
         quantify = due and st.last_cause in QUANTIFIED_CAUSES
         assert self._pool is not None, "scheduler not started"
+        baseline = await self._baseline(row, st)
         async with self._slots:
             payload = await asyncio.get_running_loop().run_in_executor(
                 self._pool,
@@ -299,6 +314,7 @@ class DiagnosisScheduler:
                 sched.loop_type,
                 notes,
                 quantify,
+                baseline,
             )
         if quantify:
             self._schedule_quantification(st, payload, sched.period_s)
@@ -314,6 +330,22 @@ class DiagnosisScheduler:
             )
         await self._store(row, payload, start_us, end_us, now_us)
         return str(payload["cause"])
+
+    async def _baseline(self, row: LoopRow, st: LoopJobState) -> tuple[float, str] | None:
+        """The loop's own normal (issue 46 item 5): the median error σ of its ``ok``
+        diagnoses over ``baseline_days``, once ``baseline_min`` of them exist; read from the
+        store at most every ``BASELINE_REFRESH_S``."""
+        if self.baseline_days <= 0 or time.monotonic() < st.baseline_due:
+            return st.baseline
+        st.baseline_due = time.monotonic() + BASELINE_REFRESH_S
+        since = _now_us() - int(self.baseline_days * 86_400e6)
+        sds = await healthy_error_sd(self.store, row, since)
+        if len(sds) >= self.baseline_min:
+            st.baseline = (
+                float(np.median(sds)),
+                f"median of {len(sds)} healthy diagnoses over {self.baseline_days:g} days",
+            )
+        return st.baseline
 
     def _schedule_quantification(
         self, st: LoopJobState, payload: dict[str, Any], period_s: float

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis import diagnose_loop
+from plantcheck.diagnosis import Baseline, diagnose_loop
 
 FloatArray = NDArray[np.float64]
 
@@ -32,6 +32,7 @@ def diagnose_window(
     loop_type: str,
     notes: list[str] | None = None,
     quantify: bool = True,
+    baseline: tuple[float, str] | None = None,
 ) -> dict[str, Any]:
     """The diagnosis (contracts §2 JSON object) of one aligned window.
 
@@ -39,6 +40,7 @@ def diagnose_window(
     ``sample_time_s`` seconds (missing samples NaN). The chain is chosen by ``diagnose_loop``
     (the advanced one when MV was stored for at least half the window).
     ``quantify`` off skips the Hammerstein S/J estimate (methods §6.1), the costly part.
+    ``baseline`` is the loop's healthy error σ (PV units) and its source, when known.
     """
     pv, op = values["pv"], values["op"]
     sp = values.get("sp")
@@ -54,5 +56,6 @@ def diagnose_window(
         auto=auto,
         loop_type=loop_type,
         quantify=quantify,
+        baseline=Baseline(baseline[0], source=baseline[1]) if baseline is not None else None,
     )
     return d.with_notes_first(notes or []).to_dict()

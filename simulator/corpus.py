@@ -33,6 +33,9 @@ from plantcheck.simulator.loop import (
     simulate_loop,
 )
 
+CORPUS_VERSION = 2
+"""Raised whenever a draw changes: cached evidence of another version is not reused."""
+
 CLASSES: tuple[str, ...] = (
     "ok",
     "stiction",
@@ -52,7 +55,7 @@ FAMILIES: dict[str, tuple[str, ...]] = {
     "load": ("steps", "ramps", "random_walk", "coloured", "periodic"),
     "sp": ("constant", "steps", "ramps", "cascade"),
     "limit": ("free", "at_100", "anywhere"),
-    "recording": ("continuous", "quantised", "compressed"),
+    "recording": ("continuous", "quantised", "compressed", "interpolated"),
 }
 
 MIN_SAMPLES, MAX_SAMPLES = 150, 12_000
@@ -224,6 +227,10 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
     gain = abs(proc.K) * (tu if proc.kind == "integrating" else 1.0)
     load_kind = str(rng.choice(FAMILIES["load"][:4]))
     load_size = _log_uniform(rng, 1.0, 20.0) * noise / gain
+    # every plant loop also sees small coloured loads from everywhere else
+    background = _nuisance_load(
+        rng, "coloured", dur, tu, _log_uniform(rng, 0.3, 3.0) * noise / gain
+    )
     loads: tuple[Disturbance, ...] = (_nuisance_load(rng, load_kind, dur, tu, load_size),)
     sp_kind = str(rng.choice(FAMILIES["sp"], p=[0.35, 0.35, 0.15, 0.15]))
     sp_steps = _set_points(rng, sp_kind, dur, ts)
@@ -295,9 +302,14 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         op_min, op_max = 100.0 - op_max, 100.0 - op_min
         loads = tuple(_negate(d) for d in loads)
     pi = PIController(Kc=pi.Kc, Ti_s=pi.Ti_s, op_min=op_min, op_max=op_max)
-    rec_kind = str(rng.choice(FAMILIES["recording"], p=[0.5, 0.25, 0.25]))
+    loads = (*loads, background)
+    rec_kind = str(rng.choice(FAMILIES["recording"], p=[0.4, 0.2, 0.2, 0.2]))
     quantum = _log_uniform(rng, 0.5, 3.0) * noise if rec_kind == "quantised" else 0.0
-    compression = _log_uniform(rng, 0.5, 3.0) * noise if rec_kind == "compressed" else 0.0
+    compressed = rec_kind in ("compressed", "interpolated")
+    compression = _log_uniform(rng, 0.5, 3.0) * noise if compressed else 0.0
+    op_compression = _log_uniform(rng, 0.02, 0.3) if rec_kind == "interpolated" else 0.0
+    # transmitter damping or a DCS PV filter on two loops in five
+    pv_filter = _log_uniform(rng, 0.5, 3.0) * ts if rng.uniform() < 0.4 else 0.0
     warmup = min(20_000, int(20 * tu / ts) + 200)
     # disturbances run on the simulation's clock, which starts with the warm-up
     loads = tuple(replace(d, steps=tuple((t + warmup * ts, v) for t, v in d.steps)) for d in loads)
@@ -316,6 +328,9 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         warmup_samples=warmup,
         pv_quantum=quantum,
         pv_compression=compression,
+        interpolated=rec_kind == "interpolated",
+        op_compression=op_compression,
+        pv_filter_s=pv_filter,
         seed=int(rng.integers(1 << 30)),
     )
     family = {"process": pkind, "valve": valve, "load": load_kind, "sp": sp_kind,

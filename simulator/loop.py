@@ -109,6 +109,14 @@ class LoopConfig:
     """Historian compression deadband of the recorded PV, % of span: a value is stored only
     when it differs from the last stored one by more than this (the record holds the last
     stored value); 0: none. The controller sees the uncompressed PV."""
+    interpolated: bool = False
+    """The historian's export interpolates linearly between stored values (as PI and most
+    process historians do when asked for values at a fixed interval) instead of holding."""
+    op_compression: float = 0.0
+    """Compression deadband of the recorded OP, % of travel (0: none)."""
+    pv_filter_s: float = 0.0
+    """Transmitter damping / DCS PV filter time constant (s): the controller and the record
+    see the filtered measurement (0: none)."""
 
 
 @dataclass(frozen=True)
@@ -186,6 +194,8 @@ class ClosedLoop:
         self.x2 = 0.0
         self.integral = cfg.u0  # integral part of the positional PI, starts at the bias
         self.auto = True
+        self.a_filter = math.exp(-ts / cfg.pv_filter_s) if cfg.pv_filter_s > 0 else 0.0
+        self.pv_filtered: float | None = None
 
     def output(self, out_d: float = 0.0) -> float:
         """The true process value (% of span) before measurement noise."""
@@ -211,6 +221,9 @@ class ClosedLoop:
         c = cfg.controller
         ts = cfg.sample_time_s
         pv_meas = self.output(out_d) + noise
+        if self.a_filter:
+            prev = pv_meas if self.pv_filtered is None else self.pv_filtered
+            pv_meas = self.pv_filtered = self.a_filter * prev + (1.0 - self.a_filter) * pv_meas
         e = sp - pv_meas
         if self.auto:
             u_unsat = self.integral + c.Kc * e
@@ -239,16 +252,26 @@ class ClosedLoop:
         return pv_meas, u, m
 
 
-def recorded_pv(pv: FloatArray, quantum: float = 0.0, compression: float = 0.0) -> FloatArray:
+def recorded_pv(
+    pv: FloatArray, quantum: float = 0.0, compression: float = 0.0, interpolated: bool = False
+) -> FloatArray:
     """The PV as a historian returns it: rounded to ``quantum`` and held while it stays within
-    ``compression`` of the last stored value (deadband compression), both % of span."""
+    ``compression`` of the last stored value (deadband compression), both % of span; with
+    ``interpolated`` the export draws straight lines between the stored values."""
     out = np.round(pv / quantum) * quantum if quantum > 0 else pv.copy()
     if compression > 0 and out.size:
         held = out[0]
+        stored = [0]
         for k in range(out.size):
             if abs(out[k] - held) > compression:
                 held = out[k]
+                stored.append(k)
             out[k] = held
+        if interpolated:
+            if stored[-1] != out.size - 1:
+                stored.append(out.size - 1)
+            idx = np.array(stored)
+            out = np.interp(np.arange(out.size), idx, out[idx])
     return out
 
 
@@ -283,7 +306,7 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     return LoopRecord(
         t=t[keep] - t[cfg.warmup_samples],
         sp=sp[keep],
-        pv=recorded_pv(pv[keep], cfg.pv_quantum, cfg.pv_compression),
-        op=op[keep],
+        pv=recorded_pv(pv[keep], cfg.pv_quantum, cfg.pv_compression, cfg.interpolated),
+        op=recorded_pv(op[keep], 0.0, cfg.op_compression, cfg.interpolated),
         mv=mv[keep],
     )

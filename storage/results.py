@@ -317,6 +317,32 @@ async def diagnosis_history(
     return total, [r._asdict() for r in rows]
 
 
+async def healthy_error_sd(
+    store: Store, loop: LoopRow, since_us: int, limit: int = 500
+) -> list[float]:
+    """The control error's σ (``indices.error_std``) of the loop's ``ok`` diagnoses whose
+    window ends after ``since_us``, newest first, at most ``limit``: the loop's own normal
+    (issue 46 item 5)."""
+    q = (
+        select(diagnoses.c.payload)
+        .where(
+            diagnoses.c.loop_id == loop.id,
+            diagnoses.c.cause == "ok",
+            diagnoses.c.window_end_us >= since_us,
+        )
+        .order_by(diagnoses.c.window_end_us.desc())
+        .limit(limit)
+    )
+    async with store.engine.connect() as conn:
+        rows = (await conn.execute(q)).all()
+    out = []
+    for (payload,) in rows:
+        sd = ((payload or {}).get("indices") or {}).get("error_std")
+        if isinstance(sd, (int, float)) and sd > 0:
+            out.append(float(sd))
+    return out
+
+
 async def active_actions(store: Store) -> list[dict[str, Any]]:
     """The suggested-action table: active actions by priority, then oldest first."""
     q = (

@@ -13,7 +13,7 @@ from plantcheck.diagnosis.result import action_for, state_of
 def test_the_contracts_words() -> None:
     assert LOOP_TYPES == ("flow", "pressure", "level", "temperature", "composition", "other")
     assert STATES == ("ok", "warning", "fault", "unknown")
-    assert len(CAUSES) == 15 and CAUSES[0] == "ok"
+    assert len(CAUSES) == 16 and CAUSES[0] == "ok"
     assert LoopType.level == "level" and f"{Cause.stiction}" == "stiction"
 
 

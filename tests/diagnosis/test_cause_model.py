@@ -95,3 +95,52 @@ def test_too_short_to_judge_is_not_ok() -> None:
         assert short.cause == "insufficient_data", short.notes
         assert any("300 needed" in note for note in short.notes)
         assert short.probabilities is None
+
+
+def test_a_loop_far_from_its_own_normal_is_not_ok() -> None:
+    """Issue 46 item 5: a healthy-looking loop whose error varies several times its baseline
+    reads ``performance_degraded`` (or the cause the evidence supports), never ``ok``."""
+    from plantcheck.diagnosis import baseline_from
+
+    proc = Process("fopdt", K=1.0, tau_s=20.0, theta_s=5.0)
+
+    def run(noise: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        load = (Disturbance(filtered_noise_std=0.3),)
+        cfg = LoopConfig(process=proc, controller=simc_pi(proc), noise_std=noise, n_samples=3000,
+                         disturbances=load, seed=seed)  # fmt: skip
+        r = simulate_loop(cfg)
+        return r.pv, r.op, r.sp
+
+    normal = baseline_from(*run(0.1, 1), source="last month")
+    pv, op, sp = run(0.1, 2)
+    same = diagnose(pv, op, 1.0, sp=sp, loop_type="temperature", baseline=normal)
+    assert same.cause == "ok", same.notes
+    assert 0.5 < same.indices["variability_ratio"] < 2.0
+    # a noisier loop whose tests find nothing wrong (a transmitter gone bad, say)
+    pv, op, sp = run(0.8, 3)
+    plain = diagnose(pv, op, 1.0, sp=sp, loop_type="temperature", quantify=False)
+    assert plain.cause == "ok", plain.notes
+    worse = diagnose(pv, op, 1.0, sp=sp, loop_type="temperature", baseline=normal, quantify=False)
+    assert worse.indices["variability_ratio"] >= 3.0
+    assert worse.cause != "ok", worse.notes
+    assert any("x its baseline" in n and "last month" in n for n in worse.notes)
+    for decide_by in ("rules", "learned"):
+        d = diagnose(pv, op, 1.0, sp=sp, loop_type="temperature", baseline=normal,
+                     quantify=False, params=ChainParams(decide_by=decide_by))  # fmt: skip
+        assert d.cause != "ok", (decide_by, d.notes)
+
+
+def test_flat_pv_while_op_moves_names_both_readings() -> None:
+    """Issue 46 item 7: not a bare data_quality, but a frozen transmitter or a valve that does
+    not move, with the evidence for each."""
+    n = 600
+    op = 40.0 + 10.0 * np.sin(np.arange(n) / 50.0)
+    pv = np.full(n, 50.0)
+    d = diagnose(pv, op, 1.0)
+    assert d.cause == "data_quality"
+    note = next(x for x in d.notes if "while PV stayed flat" in x)
+    assert "transmitter" in note and "valve" in note and "100 %" in note
+    assert "20.0 % of travel" in note
+    # an OP that hardly moves says nothing about the valve
+    still = diagnose(pv, np.full(n, 40.0) + 0.01 * np.sin(np.arange(n)), 1.0)
+    assert not any("while PV stayed flat" in x for x in still.notes)

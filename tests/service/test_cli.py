@@ -142,3 +142,36 @@ def test_diagnose_decision_learned(run_cli: RunCli) -> None:
     assert out["confidence"] == round(out["probabilities"]["stiction"], 2)
     bad = run_cli("diagnose", str(EXAMPLE), "--decision", "guess")
     assert bad.returncode == 2 and "--decision" in bad.stderr
+
+
+def test_diagnose_with_a_baseline(run_cli: RunCli, tmp_path: Path) -> None:
+    """Issue 46 item 5: ``--baseline FILE`` reads the loop's healthy variability from a record
+    of it; a window whose error varies several times more is not ok."""
+    from plantcheck.simulator.cases import simc_pi
+    from plantcheck.simulator.loop import Disturbance, LoopConfig, Process, simulate_loop
+
+    proc = Process("fopdt", K=1.0, tau_s=20.0, theta_s=5.0)
+
+    def record(noise: float, seed: int, name: str) -> Path:
+        load = (Disturbance(filtered_noise_std=0.3),)
+        r = simulate_loop(LoopConfig(process=proc, controller=simc_pi(proc), noise_std=noise,
+                                     n_samples=3000, disturbances=load, seed=seed))  # fmt: skip
+        path = tmp_path / name
+        rows = "\n".join(f"{t:g},{s:.4f},{p:.4f},{o:.4f}" for t, s, p, o in
+                         zip(r.t, r.sp, r.pv, r.op, strict=True))  # fmt: skip
+        path.write_text("t,sp,pv,op\n" + rows + "\n")
+        return path
+
+    normal, noisy = record(0.1, 1, "normal.csv"), record(0.8, 3, "noisy.csv")
+    args = ("diagnose", str(noisy), "--loop-type", "temperature", "--json")
+    plain = json.loads(run_cli(*args).stdout)
+    assert plain["cause"] == "ok"
+    r = run_cli(*args, "--baseline", str(normal))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["cause"] == "performance_degraded" and out["indices"]["variability_ratio"] > 3
+    assert any("normal.csv" in n for n in out["notes"])
+    flat = tmp_path / "flat.csv"
+    flat.write_text("t,pv,op\n" + "".join(f"{t},50,40\n" for t in range(200)))
+    bad = run_cli(*args, "--baseline", str(flat))
+    assert bad.returncode == 2 and "flat.csv" in bad.stderr and "normal operation" in bad.stderr
