@@ -51,6 +51,7 @@ LEFT_OUT: tuple[tuple[str, str], ...] = (
     ("recording", "quantised"),
     ("limit", "anywhere"),
     ("sp", "cascade"),
+    ("tuning", "detuned"),
     ("load", "random_walk"),
 )
 """The families left out one at a time (issue 46 item 6)."""

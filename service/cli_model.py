@@ -1,6 +1,6 @@
 """``plantcheck model fit``: rebuild the shipped learned decision from the simulated corpus
-(issue 46). The fitting libraries (the ``fit`` extra: LightGBM, scikit-learn) are imported by
-this command only."""
+(issue 46). The fitting library (the ``fit`` extra: LightGBM) is imported by this command
+only."""
 
 from __future__ import annotations
 

@@ -33,7 +33,7 @@ from plantcheck.simulator.loop import (
     simulate_loop,
 )
 
-CORPUS_VERSION = 2
+CORPUS_VERSION = 3
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
 
 CLASSES: tuple[str, ...] = (
@@ -46,7 +46,7 @@ CLASSES: tuple[str, ...] = (
 )
 """The causes a simulated loop is built to show (contracts §2's first six)."""
 
-FAMILY_KEYS: tuple[str, ...] = ("process", "valve", "load", "sp", "limit", "recording")
+FAMILY_KEYS: tuple[str, ...] = ("process", "valve", "load", "sp", "tuning", "limit", "recording")
 """The family axes of a window's label; each has the values listed in ``FAMILIES``."""
 
 FAMILIES: dict[str, tuple[str, ...]] = {
@@ -54,9 +54,14 @@ FAMILIES: dict[str, tuple[str, ...]] = {
     "valve": ("linear", "kano", "he", "choudhury", "backlash"),
     "load": ("steps", "ramps", "random_walk", "coloured", "periodic"),
     "sp": ("constant", "steps", "ramps", "cascade"),
+    "tuning": ("simc", "detuned", "near_limit", "sluggish"),
     "limit": ("free", "at_100", "anywhere"),
     "recording": ("continuous", "quantised", "compressed", "interpolated"),
 }
+
+DETUNABLE = frozenset({"stiction", "external_disturbance", "saturation"})
+"""Classes whose controller is drawn detuned (gain × 0.1-0.6, integral time × 1-5) in half
+the windows: the fault is the valve, the load or the limit, whatever the tuning."""
 
 MIN_SAMPLES, MAX_SAMPLES = 150, 12_000
 """Window lengths, drawn log-uniformly: short slow records to a day at a few seconds."""
@@ -262,6 +267,15 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         period = min(_log_uniform(rng, 0.3, 20.0) * tu, dur / 5.0)
         amp = _log_uniform(rng, 3.0, 15.0) * noise
         loads = (*_periodic_load(rng, max(period, 4 * ts), amp, gain), loads[0])
+    tuning = {"ok": "simc", "aggressive_tuning": "near_limit", "sluggish_tuning": "sluggish"}.get(
+        cause, "simc"
+    )
+    if cause in DETUNABLE and rng.uniform() < 0.5:
+        # plants run many loops detuned: a sticky valve then slips a few times an hour instead
+        # of cycling, a disturbance passes through a slow loop, whatever the fault
+        tuning = "detuned"
+        pi = replace(pi, Kc=pi.Kc * _log_uniform(rng, 0.1, 0.6),
+                     Ti_s=pi.Ti_s * _log_uniform(rng, 1.0, 5.0))  # fmt: skip
     limit_kind = str(rng.choice(FAMILIES["limit"], p=[0.4, 0.2, 0.4]))
     u0 = float(rng.uniform(15.0, 85.0))
     steady = _steady_op(proc, 50.0, 0.0, u0)
@@ -333,7 +347,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         pv_filter_s=pv_filter,
         seed=int(rng.integers(1 << 30)),
     )
-    family = {"process": pkind, "valve": valve, "load": load_kind, "sp": sp_kind,
+    family = {"process": pkind, "valve": valve, "load": load_kind, "sp": sp_kind, "tuning": tuning,
               "limit": limit_kind, "recording": rec_kind}  # fmt: skip
     return CorpusCase(index, cause, loop_type, cfg, family, tu)
 
