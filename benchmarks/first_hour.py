@@ -104,7 +104,7 @@ def main() -> int:
                 )
                 pages = {"/": [f'data-loop="{k}"' for k in truth],
                          f"/loop/{next(iter(truth))}": [next(iter(truth))],
-                         "/stiction": ['id="valves"', "FIC101"],
+                         "/stiction": ['id="valves"'],
                          "/actions": ["Schedule valve maintenance"],
                          "/docs": ["swagger-ui"]}  # fmt: skip
                 for path, marks in pages.items():
