@@ -107,10 +107,24 @@ class LoopJobState:
     """When (monotonic s) S and J may next be estimated for this loop."""
     quantify_backoff_s: float = 0.0
     """Wait after the last unreliable estimate (0 after a reliable one)."""
+    confirmed: str | None = None
+    """The cause this process last adopted for the loop (None: not known here)."""
     baseline: tuple[float, str] | None = None
     """The loop's healthy error σ and where it came from (``BASELINE_REFRESH_S``)."""
     baseline_due: float = -float("inf")
     """When (monotonic s) the baseline is next read from the store."""
+
+
+TUNING_CAUSES = frozenset({"sluggish_tuning", "aggressive_tuning"})
+"""Confirmed causes that a window without tuning evidence does not clear (``judges_tuning``)."""
+
+
+def judges_tuning(payload: dict[str, Any]) -> bool:
+    """Whether a diagnosis read the loop's tuning from something: a set-point step response,
+    a load recovery, Hägglund's idle index, or an oscillation."""
+    ind = payload.get("indices") or {}
+    keys = ("sp_step_slowness", "load_recovery_slowness", "idle_index")
+    return bool(payload.get("oscillating")) or any(ind.get(k) is not None for k in keys)
 
 
 BASELINE_REFRESH_S = 6 * 3600.0
@@ -388,11 +402,18 @@ class DiagnosisScheduler:
             stiction_limit=self.schedules[row.name].stiction_limit,
         )
         st = self.state[row.name]
-        if cause == st.last_cause:
+        if cause == "ok" and st.confirmed in TUNING_CAUSES and not judges_tuning(payload):
+            # a window with no set-point move, no load recovery and no idle index cannot show
+            # that a badly tuned loop got better: it confirms nothing (issue 46: the demo's
+            # sluggish loop read ok in two quiet windows and lost its action for a while)
+            st.last_cause, st.streak, st.streak_since_us = cause, 0, now_us
+        elif cause == st.last_cause:
             st.streak += 1
         else:
             st.last_cause, st.streak, st.streak_since_us = cause, 1, now_us
         adopt = st.streak >= self.confirm
+        if adopt:
+            st.confirmed = cause
         if await self.verdicts.write(PendingVerdict(verdict, adopt, st.streak_since_us)):
             log.info("%s: %s (%s)", row.name, cause, verdict.state)
             self._count_states_soon()

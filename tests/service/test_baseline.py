@@ -79,3 +79,42 @@ def test_a_window_far_from_its_baseline_is_not_ok() -> None:
         "investigate_degradation"
     )
     assert np.isfinite(out["indices"]["op_std"])
+
+
+def test_a_quiet_window_does_not_clear_a_tuning_verdict(db_url: str) -> None:
+    """Issue 46: the demo's sluggish loop read ok in windows with no load, no set-point move
+    and no idle index, and lost its verdict and action for a while. Such a window confirms
+    nothing; windows that did judge the tuning still clear it."""
+    from plantcheck.storage.results import loop_statuses
+
+    def payload(cause: str, **indices: float) -> dict[str, object]:
+        return {"cause": cause, "oscillating": False, "indices": indices, "notes": [],
+                "actions": [], "stiction": {}}  # fmt: skip
+
+    async def body() -> None:
+        store = await Store.open(db_url)
+        sched = DiagnosisScheduler(store, schedules_of(CONFIG), 1, confirm=2)
+        try:
+            row = (await store.sync_config(CONFIG))["TIC1"]
+            t = time.time_ns() // 1000
+
+            async def feed(*payloads: dict[str, object]) -> str:
+                nonlocal t
+                for p in payloads:
+                    t += 1_000_000
+                    await sched._store(row, p, t - 3_600_000_000, t, t)
+                return {s.id: s.cause for s in await loop_statuses(store)}["TIC1"]
+
+            slow = payload("sluggish_tuning", load_recovery_slowness=6.0)
+            quiet = payload("ok")
+            judged = payload("ok", idle_index=-0.3)
+            assert await feed(slow, slow) == "sluggish_tuning"
+            assert await feed(judged, quiet, quiet, judged, slow) == "sluggish_tuning"
+            assert await feed(judged, judged) == "ok"
+            # a loop never found badly tuned becomes ok on quiet windows as before
+            assert await feed(payload("stiction"), payload("stiction"), quiet, quiet) == "ok"
+        finally:
+            await sched.verdicts.close()
+            await store.close()
+
+    asyncio.run(body())
