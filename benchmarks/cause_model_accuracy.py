@@ -15,13 +15,12 @@ fills), so a second run only fits.
 from __future__ import annotations
 
 import argparse
-import itertools
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from plantcheck.diagnosis.cause_model import shipped_cause_model
+from plantcheck.diagnosis.cause_model import calibrated, shipped_cause_model
 from plantcheck.service.cause_model_fit import (
     CALIBRATION_SEED,
     CHECK_SEED,
@@ -32,8 +31,8 @@ from plantcheck.service.cause_model_fit import (
     fit_temperature,
     fit_trees,
     macro_f1,
-    probabilities,
     raw_scores,
+    reliability,
 )
 from plantcheck.simulator.corpus import CLASSES, FAMILIES
 
@@ -59,18 +58,6 @@ LEFT_OUT: tuple[tuple[str, str], ...] = (
 
 def say(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
-
-
-def reliability(p: np.ndarray, y: np.ndarray, bins: int = 10) -> list[tuple[float, float, int]]:
-    """(mean confidence, accuracy, windows) per bin of the top-class probability."""
-    conf, right = p.max(axis=1), p.argmax(axis=1) == y
-    edges = np.linspace(0.0, 1.0, bins + 1)
-    out = []
-    for lo, hi in itertools.pairwise(edges):
-        m = (conf > lo) & (conf <= hi)
-        if m.any():
-            out.append((float(conf[m].mean()), float(right[m].mean()), int(m.sum())))
-    return out
 
 
 def plot(table: list[tuple[float, float, int]], path: Path, ece: float) -> None:
@@ -107,7 +94,7 @@ def main() -> None:
         sys.exit("no shipped model: run plantcheck model fit first")
     small = max(60, a.windows // 4)
     chk = corpus_evidence(CHECK_SEED, small, progress=say, cache=CACHE)
-    p = probabilities(raw_scores(model, chk.x), model.temperature)
+    p = calibrated(raw_scores(model, chk.x), model.temperature)
     pred = p.argmax(axis=1)
     mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
     rules = np.array([CLASSES.index(r) if r in CLASSES else -1 for r in chk.rules])
@@ -155,7 +142,7 @@ def left_out(windows: int, chk: object, pred: np.ndarray) -> None:
         t = fit_temperature(raw_scores(m, cal.x[cal_keep]), cal.y[cal_keep])
         fam = np.array(chk.family[key]) == value  # type: ignore[attr-defined]
         y = chk.y[fam]  # type: ignore[attr-defined]
-        p_out = probabilities(raw_scores(m, chk.x[fam]), t).argmax(axis=1)  # type: ignore[attr-defined]
+        p_out = calibrated(raw_scores(m, chk.x[fam]), t).argmax(axis=1)  # type: ignore[attr-defined]
         full, out = float(np.mean(pred[fam] == y)), float(np.mean(p_out == y))
         print(
             f"{key + '=' + value:24s} {int(fam.sum()):7d}  {full:10.3f}  {out:14.3f}  "

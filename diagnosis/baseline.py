@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.signal_tools import FloatArray, detrend
 
 DEGRADED_RATIO = 3.0
 """The error's σ at least this many times its baseline is a loop far from its own normal
@@ -34,10 +34,7 @@ class Baseline:
 
 def _detrended_sd(x: FloatArray) -> float:
     x = x[np.isfinite(x)]
-    if x.size < 3:
-        return math.nan
-    t = np.arange(x.size, dtype=np.float64)
-    return float(np.std(x - np.polyval(np.polyfit(t, x, 1), t)))
+    return float(np.std(detrend(x))) if x.size >= 3 else math.nan
 
 
 def variability(

@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -106,15 +105,15 @@ def load_cause_model(path: Path) -> CauseModel:
         )
 
 
+SHIPPED_MODEL = Path(__file__).with_name("models") / MODEL_FILE
+"""The shipped model's path (``plantcheck model fit`` writes it by default)."""
+
+
 @lru_cache(maxsize=1)
 def shipped_cause_model() -> CauseModel | None:
     """The model shipped with the package, or None when the file is absent (a build that
     has not fitted one yet: the chain's rules then decide alone)."""
-    ref = resources.files("plantcheck.diagnosis.models").joinpath(MODEL_FILE)
-    if not ref.is_file():
-        return None
-    with resources.as_file(ref) as path:
-        return load_cause_model(path)
+    return load_cause_model(SHIPPED_MODEL) if SHIPPED_MODEL.is_file() else None
 
 
 def decide(model: CauseModel, x: FloatArray) -> Decision:
@@ -135,7 +134,10 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
         go_left = np.where(np.isnan(xv), model.default_left[idx], xv <= model.threshold[idx])
         nxt = np.where(inner, np.where(go_left, model.left[idx], model.right[idx]), idx)
         delta = model.value[nxt] - model.value[idx]
-        np.add.at(contrib, (model.tree_class[inner], f[inner]), delta[inner])
+        cell = model.tree_class[inner] * n_feat + f[inner]
+        contrib += np.bincount(cell, weights=delta[inner], minlength=n_cls * n_feat).reshape(
+            n_cls, n_feat
+        )
         idx = nxt
     raw = np.bincount(model.tree_class, weights=model.value[idx], minlength=n_cls).astype(
         np.float64
@@ -143,6 +145,13 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
     base = np.bincount(model.tree_class, weights=model.value[model.roots], minlength=n_cls).astype(
         np.float64
     )
-    z = raw / model.temperature
-    p = np.exp(z - z.max())
-    return Decision(p / p.sum(), raw, base, contrib)
+    return Decision(calibrated(raw, model.temperature), raw, base, contrib)
+
+
+def calibrated(raw: FloatArray, temperature: float) -> FloatArray:
+    """softmax(raw / temperature) over the last axis: the calibrated class probabilities of
+    one window's raw scores, or of each row of many."""
+    z = raw / temperature
+    p = np.exp(z - z.max(axis=-1, keepdims=True))
+    out: FloatArray = p / p.sum(axis=-1, keepdims=True)
+    return out

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from plantcheck.diagnosis.signal_tools import FloatArray, noise_sigma
+from plantcheck.diagnosis.signal_tools import FloatArray, detrend, fft_acf, noise_sigma
 
 EVIDENCE_VERSION = 3
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn."""
@@ -115,14 +115,10 @@ def _skew(x: FloatArray) -> float:
 
 
 def _acf_time(x: FloatArray) -> float | None:
-    """First lag (samples) where the ACF of ``x`` falls below 1/e, by FFT; None if never."""
-    d = x - np.mean(x)
-    n = d.size
-    if n < 8 or not np.any(d):
+    """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never."""
+    if x.size < 8 or not np.any(x - np.mean(x)):
         return None
-    f = np.fft.rfft(d, 2 * n)
-    acf = np.fft.irfft(f * np.conj(f))[:n]
-    below = np.flatnonzero(acf < acf[0] / math.e)
+    below = np.flatnonzero(fft_acf(x, max_lag=x.size) < 1.0 / math.e)
     return float(below[0]) if below.size else None
 
 
@@ -133,10 +129,7 @@ def shape_evidence(
     kurtosis (Choudhury et al. 2004 read non-Gaussianity as non-linearity), PV's largest jump
     against its increments, how OP's and PV's increments go together, the proportional
     share of OP's moves and the error's correlation time against the integral time."""
-    e = sp - pv
-    t = np.arange(e.size, dtype=np.float64)
-    ed = e - np.polyval(np.polyfit(t, e, 1), t) if e.size > 2 else e
-    opd = op - np.polyval(np.polyfit(t, op, 1), t) if op.size > 2 else op
+    ed, opd = detrend(sp - pv), detrend(op)
     dpv, dop = np.diff(pv), np.diff(op)
     sd_dpv, sd_dop = float(np.std(dpv)), float(np.std(dop))
     sd_e, sd_op = float(np.std(ed)), float(np.std(opd))

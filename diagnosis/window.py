@@ -253,8 +253,8 @@ def _flat_pv_while_op_moves(w: _Window, p: WindowParams) -> None:
     travel = float(np.ptp(op)) if op.size else 0.0
     if travel < p.flat_pv_op_travel:
         return
-    pv = w.pv[np.isfinite(w.pv)]
-    exact = float(np.mean(np.diff(pv) == 0.0)) if pv.size > 1 else 1.0
+    # the share the measurement check read; a PV constant over the window repeats everywhere
+    exact = float(w.indices.get("pv_unchanged_fraction", 1.0))
     w.notes.append(
         f"OP moved over {travel:.1f} % of travel while PV stayed flat: either the transmitter "
         f"is frozen (PV repeats its value exactly on {100 * exact:.0f} % of samples; a live "

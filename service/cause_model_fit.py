@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from plantcheck.diagnosis.cause_model import CauseModel, decide
+from plantcheck.diagnosis.cause_model import CauseModel, calibrated, decide
 from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
 from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, FAMILY_KEYS, draw_case
@@ -234,15 +234,6 @@ def fit_temperature(raw: NDArray[np.float64], y: NDArray[np.int64]) -> float:
     return float(math.exp(res.x))
 
 
-def probabilities(raw: NDArray[np.float64], temperature: float) -> NDArray[np.float64]:
-    """softmax(raw / temperature), row by row."""
-    z = raw / temperature
-    z = z - z.max(axis=1, keepdims=True)
-    p = np.exp(z)
-    out: NDArray[np.float64] = p / p.sum(axis=1, keepdims=True)
-    return out
-
-
 def macro_f1(
     y: NDArray[np.int64], pred: NDArray[np.int64], n_cls: int
 ) -> tuple[float, list[float]]:
@@ -256,19 +247,27 @@ def macro_f1(
     return float(np.mean(f1s)), f1s
 
 
+def reliability(
+    p: NDArray[np.float64], y: NDArray[np.int64], bins: int = 10
+) -> list[tuple[float, float, int]]:
+    """(mean probability, share right, windows) of the top class per equal-width bin of its
+    probability: the reliability diagram's points (Guo et al. 2017)."""
+    conf = p.max(axis=1)
+    right = p.argmax(axis=1) == y
+    out = []
+    for lo, hi in itertools.pairwise(np.linspace(0.0, 1.0, bins + 1)):
+        m = (conf > lo) & (conf <= hi)
+        if m.any():
+            out.append((float(conf[m].mean()), float(right[m].mean()), int(m.sum())))
+    return out
+
+
 def expected_calibration_error(
     p: NDArray[np.float64], y: NDArray[np.int64], bins: int = 10
 ) -> float:
-    """ECE of the top-class probability over ``bins`` equal-width bins (Guo et al. 2017)."""
-    conf = p.max(axis=1)
-    right = p.argmax(axis=1) == y
-    edges = np.linspace(0.0, 1.0, bins + 1)
-    ece = 0.0
-    for lo, hi in itertools.pairwise(edges):
-        m = (conf > lo) & (conf <= hi)
-        if m.any():
-            ece += float(m.mean()) * abs(float(right[m].mean()) - float(conf[m].mean()))
-    return ece
+    """ECE: the reliability bins' gaps between probability and share right, weighted by their
+    windows (Guo et al. 2017)."""
+    return sum(n * abs(acc - conf) for conf, acc, n in reliability(p, y, bins)) / max(y.size, 1)
 
 
 @dataclass(frozen=True)
@@ -319,7 +318,7 @@ def fit_model(
         raise RuntimeError(f"exported trees disagree with LightGBM: {np.abs(ref - mine).max():g}")
     temperature = fit_temperature(raw_scores(model, cal.x), cal.y)
     model = export_trees(booster, temperature, meta)
-    p = probabilities(raw_scores(model, chk.x), temperature)
+    p = calibrated(raw_scores(model, chk.x), temperature)
     pred = p.argmax(axis=1)
     mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
     rule_pred = np.array([CLASSES.index(r) if r in CLASSES else -1 for r in chk.rules])

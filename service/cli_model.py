@@ -20,9 +20,6 @@ model_app = typer.Typer(
     rich_markup_mode=None,
 )
 
-SHIPPED = Path(__file__).resolve().parents[1] / "diagnosis" / "models" / "cause_model.npz"
-"""Where the package reads its model (``diagnosis.cause_model.MODEL_FILE``)."""
-
 
 @model_app.command("fit", short_help="Fit the cause model on the simulated corpus and save it.")
 def fit_cmd(
@@ -32,7 +29,12 @@ def fit_cmd(
             min=60, help="Corpus windows to fit on (calibration and check: a quarter each)."
         ),
     ] = 16_000,
-    out: Annotated[Path, typer.Option(help="Model file to write.")] = SHIPPED,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Model file to write (default: the one the package reads).", show_default=False
+        ),
+    ] = None,
     jobs: Annotated[
         int | None, typer.Option(min=1, help="Processes (default: every core).")
     ] = None,
@@ -51,7 +53,11 @@ def fit_cmd(
         import lightgbm  # noqa: F401
     except ImportError:
         raise fail("model fit needs LightGBM: pip install -e '.[fit]'") from None
+    # imported here: the diagnosis package costs the other commands' start-up its numpy/scipy
+    from plantcheck.diagnosis.cause_model import SHIPPED_MODEL
     from plantcheck.service.cause_model_fit import fit_model, save_model
+
+    out = out or SHIPPED_MODEL
 
     t0 = time.monotonic()
     rep = fit_model(windows, jobs, lambda m: print(m, file=sys.stderr, flush=True), cache)

@@ -32,6 +32,7 @@ from plantcheck.simulator.loop import (
     Process,
     simulate_loop,
 )
+from plantcheck.simulator.plant_windows import steady_op
 
 CORPUS_VERSION = 3
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
@@ -105,13 +106,6 @@ def _process(rng: np.random.Generator, kind: str, ts: float) -> tuple[Process, s
         proc = replace(proc, zero_s=-_log_uniform(rng, 0.3, 1.5) * proc.tau2_s)
     loop_type = str(rng.choice(["flow", "pressure", "temperature", "composition", "other"]))
     return proc, loop_type
-
-
-def _steady_op(proc: Process, sp: float, load: float, u0: float) -> float:
-    """OP (%) holding PV at ``sp`` against a constant ``load`` (% at the process input)."""
-    if proc.kind == "integrating":
-        return u0 - load
-    return u0 + (sp - 50.0) / proc.K - load
 
 
 def _nuisance_load(
@@ -278,7 +272,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
                      Ti_s=pi.Ti_s * _log_uniform(rng, 1.0, 5.0))  # fmt: skip
     limit_kind = str(rng.choice(FAMILIES["limit"], p=[0.4, 0.2, 0.4]))
     u0 = float(rng.uniform(15.0, 85.0))
-    steady = _steady_op(proc, 50.0, 0.0, u0)
+    steady = steady_op(proc, 50.0, 0.0, u0)
     op_min, op_max = 0.0, 100.0
     high = rng.uniform() < 0.7
     if cause == "saturation":
@@ -295,7 +289,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         )
         at = float(rng.uniform(0.05, 0.5)) * dur
         u0 = float(np.clip(limit - (10.0 if high else -10.0), 5.0, 95.0))
-        steady = _steady_op(proc, 50.0, 0.0, u0)
+        steady = steady_op(proc, 50.0, 0.0, u0)
         loads = (Disturbance(steps=((at, steady - need),)), *loads[1:])
         sp_steps = tuple((t, v) for t, v in sp_steps if t < at)
         if high:

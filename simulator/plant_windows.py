@@ -50,7 +50,7 @@ class PlantWindowCase:
     """PV noise σ, % of span."""
 
 
-def _steady_op(proc: Process, sp: float, load: float = 0.0, u0: float = 50.0) -> float:
+def steady_op(proc: Process, sp: float, load: float = 0.0, u0: float = 50.0) -> float:
     """Controller output (%) that holds PV at ``sp`` against a constant ``load`` (% at the
     process input); the simulated process is in deviations around OP ``u0`` at PV 50 %."""
     if proc.kind == "integrating":
@@ -114,7 +114,7 @@ def _draw(
     pi = su.pi
     limit: float | None = None
     if rng.uniform() < 0.5:
-        limit = min(95.0, max(50.0, _steady_op(proc, 50.0) + float(rng.uniform(8.0, 25.0))))
+        limit = min(95.0, max(50.0, steady_op(proc, 50.0) + float(rng.uniform(8.0, 25.0))))
     loads: tuple[Disturbance, ...] = (_random_loads(rng, dur, 40 * su.tu, 1.0),)
     extra = ""
     valve = "linear"
@@ -147,7 +147,7 @@ def _draw(
         limit = float(rng.uniform(50.0, 95.0))
         # a load step early on asks for 3-10 % more output than the limit allows
         need = limit + float(rng.uniform(3.0, 10.0))
-        load = _steady_op(proc, 50.0) - need
+        load = steady_op(proc, 50.0) - need
         at = float(rng.uniform(0.1, 0.3)) * dur
         loads = (Disturbance(where="load", steps=((at, load),)),)
         sp_steps = tuple((t, v) for t, v in sp_steps if t < at)
