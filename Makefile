@@ -48,7 +48,7 @@ system-deps:
 
 # PYTEST_ARGS narrows the run (the set-up test runs `make test` in a scratch clone on a few tests)
 pytest: venv system-deps
-	$(BIN)/pytest -q --durations=15 $(PYTEST_ARGS)
+	$(BIN)/pytest -q -n 2 --dist worksteal --durations=15 $(PYTEST_ARGS)
 
 test: lint typecheck pytest
 

@@ -57,7 +57,9 @@ def _terminal_fd(config: pytest.Config) -> int | None:
     goes to a file meanwhile); written to with one ``os.write``, which needs no capture state
     to change from the heartbeat's thread. None where pytest does not capture at the fd."""
     capman = config.pluginmanager.get_plugin("capturemanager")
-    out = getattr(getattr(capman, "_global_capturing", None), "out", None)
+    # an xdist worker's fd 1 is its channel to the controller; its fd 2 is the controller's
+    stream = "err" if hasattr(config, "workerinput") else "out"
+    out = getattr(getattr(capman, "_global_capturing", None), stream, None)
     fd = getattr(out, "targetfd_save", None)
     return fd if isinstance(fd, int) else None
 
