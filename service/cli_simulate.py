@@ -68,7 +68,8 @@ def simulate_cmd(
         float | None,
         typer.Option(
             help="Simulated seconds per wall second (1 = real time, 100 = 100x); default: the "
-            "scenario's clock.speed (1 in the bundled scenario)."
+            "scenario's clock.speed (1 in the bundled scenario); with --export-map, the map "
+            "polls at this pace."
         ),
     ] = None,
     to_csv: Annotated[
@@ -112,7 +113,16 @@ def simulate_cmd(
         text = (
             map_csv(scenario)
             if export_map.suffix == ".csv"
-            else map_toml(scenario, protocol=map_protocol)
+            # polled once per simulated sample at the speed given: slower polls skip samples
+            else map_toml(
+                scenario,
+                protocol=map_protocol,
+                poll_interval_s=(
+                    scenario.clock.sample_time_s / scenario.clock.speed
+                    if speed is not None
+                    else None
+                ),
+            )
         )
         export_map.write_text(text, encoding="utf-8")
         typer.echo(f"register map of {len(scenario.loop)} loops written to {export_map}")
