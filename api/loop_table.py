@@ -34,6 +34,7 @@ def loop_json(s: LoopStatus) -> dict[str, Any]:
         "S": s.S,
         "J": s.J,
         "S_method": s.S_method,
+        "S_at": iso(s.S_at_us),
     }
 
 

@@ -30,6 +30,11 @@ class LoopOut(BaseModel):
         description="How S and J were estimated (hammerstein, measured, events, ellipse): the "
         "latest reliable estimate of the most direct method the valve has.",
     )
+    S_at: str | None = Field(
+        None,
+        description="When S and J were estimated (ISO 8601 UTC, the end of the window they "
+        "came from): their age.",
+    )
 
 
 class LoopDetail(LoopOut):
@@ -113,6 +118,17 @@ class ValveReport(BaseModel):
         None,
         description="The one method whose reliable estimates make the trend, the weekly "
         "medians and the current S (methods are never mixed); null without any estimate.",
+    )
+    latest_S: float | None = Field(
+        None,
+        description="The valve's S as the loop table shows it (GET /loops S): its latest "
+        "reliable estimate of the most direct method, % of travel.",
+    )
+    latest_J: float | None = Field(None, description="J with latest_S, % of travel.")
+    latest_method: str | None = Field(None, description="The method of latest_S (S_method).")
+    latest_at: str | None = Field(None, description="When latest_S was estimated (S_at).")
+    action: str | None = Field(
+        None, description="The loop's open action, as GET /actions gives it (null: none)."
     )
     weeks: list[WeekOut]
     estimates: list[StictionPoint]

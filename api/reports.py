@@ -21,7 +21,13 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Response
 from plantcheck.api.deps import Backend, TimeRange, iso, iso_required, require_read_key
 from plantcheck.api.models import StictionPoint, StictionReport, ValveReport, WeekOut
 from plantcheck.diagnosis.stiction_trend import TrendParams
-from plantcheck.storage.results import count_estimates, stiction_history
+from plantcheck.storage.results import (
+    LoopStatus,
+    active_actions,
+    count_estimates,
+    loop_statuses,
+    stiction_history,
+)
 from plantcheck.storage.trends import StoredEstimate, StoredTrend, read_trends
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
@@ -49,10 +55,17 @@ def _weeks(at: np.ndarray, S: np.ndarray, J: np.ndarray) -> list[WeekOut]:
 
 
 def valve_report(
-    loop: str, rows: list[StoredEstimate], trend: StoredTrend | None, limit: float
+    loop: str,
+    rows: list[StoredEstimate],
+    trend: StoredTrend | None,
+    limit: float,
+    status: LoopStatus | None = None,
+    action: str | None = None,
 ) -> ValveReport:
     """One valve's report: its estimates in the period, each with its method, the weekly
-    medians of the trend's method, and the trend stored with its latest estimate."""
+    medians of the trend's method, and the trend stored with its latest estimate; beside
+    them the S and the action the loop table and the actions page show (one truth per loop,
+    issue 47)."""
     method = trend.method if trend is not None else None
     used = [r for r in rows if r.method == method and r.reliable]
     at = np.array([r.at_us for r in used], dtype=np.int64)
@@ -78,6 +91,11 @@ def valve_report(
         projected_crossing=iso(trend.projected_crossing_us) if trend is not None else None,
         note=note,
         trend_method=method,
+        latest_S=status.S if status is not None else None,
+        latest_J=status.J if status is not None else None,
+        latest_method=status.S_method if status is not None else None,
+        latest_at=iso(status.S_at_us) if status is not None else None,
+        action=action,
         weeks=_weeks(at, S, J),
         estimates=[
             StictionPoint(
@@ -154,13 +172,22 @@ async def build_report(backend: Backend, times: TimeRange) -> StictionReport:
         )
     history = await stiction_history(backend.store, times.start_us, times.end_us)
     trends = await read_trends(backend.store)
+    statuses = {s.id: s for s in await loop_statuses(backend.store)}
+    texts = {a["loop"]: a["text"] for a in await active_actions(backend.store)}
     limits = backend.stiction_limits
     return StictionReport(
         generated_at=iso_required(time.time_ns() // 1000),
         start=iso(times.start_us),
         end=iso(times.end_us),
         valves=[
-            valve_report(loop, rows, trends.get(loop), limits.get(loop, TrendParams().limit))
+            valve_report(
+                loop,
+                rows,
+                trends.get(loop),
+                limits.get(loop, TrendParams().limit),
+                statuses.get(loop),
+                texts.get(loop),
+            )
             for loop, rows in history.items()
         ],
     )

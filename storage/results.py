@@ -65,6 +65,8 @@ class LoopStatus:
     S: float | None
     J: float | None
     S_method: str | None = None
+    S_at_us: int | None = None
+    """When S and J were estimated (µs UTC, the end of the window they came from)."""
 
 
 QUANTIFIED_CAUSES = frozenset({"stiction", "deadband_backlash"})
@@ -251,15 +253,16 @@ async def loop_statuses(
         stiction_estimates.c.S,
         stiction_estimates.c.J,
         stiction_estimates.c.method,
+        stiction_estimates.c.at_us,
     ).where(stiction_estimates.c.id.in_(latest.scalar_subquery()))
-    est: dict[int, tuple[float | None, float | None, str | None]] = {}
+    est: dict[int, tuple[float | None, float | None, str | None, int | None]] = {}
     async with store.engine.connect() as conn:
         rows = (await conn.execute(q)).all()
-        for loop_id, S, J, method in (await conn.execute(est_q)).all():
+        for loop_id, S, J, method, at_us in (await conn.execute(est_q)).all():
             have = est.get(loop_id)
             if have is None or _rank(method) < _rank(have[2]):
-                est[loop_id] = (S, J, method)
-    none: tuple[float | None, float | None, str | None] = (None, None, None)
+                est[loop_id] = (S, J, method, at_us)
+    none: tuple[float | None, float | None, str | None, int | None] = (None, None, None, None)
     return [
         LoopStatus(
             r.name,

@@ -385,6 +385,26 @@ def test_one_truth_per_loop_on_every_page(service: Service) -> None:
         if S is not None:
             assert f"S = {S:.2f} %" in page and "not quantified" not in page, loop_id
         assert not re.search(r"period \d+\.\d{2,} s|amplitude \d+\.\d{3,}", page), loop_id
+    # the maintenance report shows the table's S, its method and age, and the action's text
+    report = httpx.get(f"{service.url}/api/v1/reports/stiction").json()
+    report_page = httpx.get(f"{service.url}/stiction").text
+    assert report["valves"]
+    for v in report["valves"]:
+        lp = loops[v["loop"]]
+        assert (v["latest_S"], v["latest_J"], v["latest_method"], v["latest_at"]) == (
+            lp["S"],
+            lp["J"],
+            lp["S_method"],
+            lp["S_at"],
+        ), (v, lp)
+        assert v["action"] == (acts[v["loop"]]["action"] if v["loop"] in acts else None)
+        if lp["S"] is not None:
+            assert lp["S_at"] and lp["S_at"].endswith("Z"), lp
+            written = f"S = {lp['S']:.2f} %"
+            assert written in report_page and lp["S_at"] in report_page, v["loop"]
+            assert written in httpx.get(f"{service.url}/loop/{v['loop']}").text
+        if v["action"]:
+            assert html_.escape(v["action"]) in report_page, v["loop"]
 
 
 def test_charts_are_in_utc_whatever_the_browser_zone(service: Service, tmp_path: Path) -> None:
