@@ -114,6 +114,84 @@ class EvidenceJSON(_Part):
     contribution: float
 
 
+class ProcessModelJSON(_Part):
+    """The process identified from OP to PV (issue 48)."""
+
+    type: Literal["fopdt", "ipdt"] | None = Field(
+        description="fopdt: first order plus dead time; ipdt: integrator plus dead time."
+    )
+    K: float | None = Field(
+        description="Gain: PV units per % of OP (ipdt: PV units per s per % of OP)."
+    )
+    tau_s: float | None = Field(description="Time constant, s (fopdt).")
+    theta_s: float | None = Field(description="Dead time, s.")
+    fit_percent: float | None = Field(description="Simulated-output fit, %.")
+    K_sd: float | None = None
+    tau_sd: float | None = None
+    theta_sd: float | None = None
+    source: str | None = Field(None, description="'set-point steps' or 'routine'.")
+
+
+class ControllerJSON(_Part):
+    """An ideal-form PI(D): Kc in % of OP per PV unit (positive: reverse acting), Ti and Td
+    in s; a proposal also names its method and closed-loop time constant."""
+
+    Kc: float | None
+    Ti_s: float | None
+    Td_s: float | None = None
+    method: str | None = None
+    tau_c_s: float | None = None
+
+
+class ResponseJSON(_Part):
+    """A predicted closed-loop response: PV after a unit set-point step (``sp``) and after a
+    load step worth one PV unit (``load``), at times ``t_s``."""
+
+    t_s: list[float]
+    sp: list[float]
+    load: list[float]
+
+
+class PredictionJSON(_Part):
+    """What the proposal will do on the identified process."""
+
+    iae_ratio: float | None = Field(
+        description="Error integral (set-point plus load step), proposed / present."
+    )
+    gain_margin: float | None = Field(description="Gain margin of the proposal (times).")
+    ms: float | None = Field(description="Maximum sensitivity of the proposal.")
+    phase_margin_deg: float | None = None
+    current: dict[str, float | None] | None = None
+    proposed_response: ResponseJSON | None = None
+    current_response: ResponseJSON | None = None
+
+
+class DcsJSON(_Part):
+    """The proposal in the loop's configured controller form."""
+
+    form: Literal["ideal", "parallel", "series"]
+    gain: float
+    gain_unit: str
+    integral: float
+    integral_unit: str
+    derivative: float | None = None
+    derivative_unit: str | None = None
+    action: Literal["reverse", "direct"]
+    note: str | None = None
+
+
+class TuningJSON(_Part):
+    """Identification and retuning (contracts §2 ``tuning``, issue 48)."""
+
+    model: ProcessModelJSON | None
+    current: ControllerJSON | None
+    proposed: ControllerJSON | None
+    alternative: ControllerJSON | None = None
+    predicted: PredictionJSON | None
+    dcs: DcsJSON | None
+    note: str | None = None
+
+
 class DiagnosisJSON(_Part):
     """One loop diagnosis (contracts §2)."""
 
@@ -136,3 +214,6 @@ class DiagnosisJSON(_Part):
     """Each cause's calibrated probability (the learned model, issue 46)."""
     evidence: list[EvidenceJSON] | None = None
     """The inputs that moved the decision most, largest contribution first."""
+    tuning: TuningJSON | None = None
+    """For a tuning cause: the identified process, the present and proposed controller and
+    the prediction; for a valve cause: why there is no proposal (issue 48)."""

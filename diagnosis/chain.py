@@ -73,6 +73,7 @@ from plantcheck.diagnosis.tuning import (
     idle_filter_s,
     idle_index,
 )
+from plantcheck.diagnosis.tuning_proposal import TuningSettings, tuning_for, valve_first
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
     BoolArray,
@@ -103,6 +104,9 @@ class ChainParams:
     decide_by: str = "rules"
     """``rules``: the chain's rules give the cause, the model its probability; ``learned``:
     the model's most probable cause is the verdict (``plantcheck diagnose --decision``)."""
+    retuning: TuningSettings = field(default_factory=TuningSettings)
+    """Identification and retuning of a loop diagnosed with its tuning wrong (issue 48), and
+    the form its controller takes the setting in."""
     fast_processes: tuple[tuple[str, float], ...] = (("flow", 20.0),)
     """Loop types whose process follows the valve within this many seconds (lag and dead
     time): a flow (Kano et al. 2004 and Yamashita 2006 read the flow as the valve position).
@@ -266,7 +270,23 @@ def _standard(
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
     run = _Run(win, ts, loop_type, p, quantify, exclude_stiction, diag, baseline=baseline)
-    return _run_chain(run).diag
+    return _with_tuning(_run_chain(run))
+
+
+def _with_tuning(run: _Run) -> DiagnosisDraft:
+    """The retuning (issue 48) of a loop whose cause is its tuning, or why a valve at fault
+    gets none; the action text gains the proposal."""
+    diag = run.diag
+    out = tuning_for(
+        diag.cause, run.win.pv, run.win.op, run.ts, run.loop_type,
+        np.asarray(run.win.steps, dtype=np.int64), run.win.indices.get("auto_fraction"),
+        run.pi_window, run.p.retuning,
+    )  # fmt: skip
+    if out is not None:
+        diag.tuning = out.json
+        if out.action_text and diag.actions:
+            diag.actions[0] = {**diag.actions[0], "text": diag.actions[0]["text"] + out.action_text}
+    return diag
 
 
 def _run_chain(run: _Run) -> _Run:
@@ -1055,6 +1075,7 @@ def diagnose_advanced(
     if va.state != "ok":
         std.cause = va.state
         std.confidence = 0.8
+        std.tuning = valve_first(va.state).json
         std.stiction["detected"] = va.state == "stiction"
         if va.state in ("stiction", "deadband_backlash"):
             std.stiction["S"] = va.S

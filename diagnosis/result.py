@@ -268,6 +268,9 @@ class Diagnosis:
     evidence: tuple[Mapping[str, Any], ...] | None = None
     """The inputs that moved the decision most, ``{"name", "value", "contribution"}``,
     largest contribution first (contracts §2 optional field)."""
+    tuning: Mapping[str, Any] | None = None
+    """The identified process, present and proposed controller and the prediction for a
+    tuning cause; why there is no proposal for a valve cause (contracts §2 ``tuning``)."""
 
     def with_notes_first(self, notes: Sequence[str]) -> Diagnosis:
         """The same diagnosis with ``notes`` before its own (the record's or the store's)."""
@@ -297,6 +300,7 @@ class Diagnosis:
                 else {}
             ),
             **({"evidence": json_safe(_plain(self.evidence))} if self.evidence is not None else {}),
+            **({"tuning": json_safe(_plain(self.tuning))} if self.tuning is not None else {}),
         }
 
 
@@ -351,6 +355,7 @@ class DiagnosisDraft:
     notes: list[str] = field(default_factory=list)
     probabilities: dict[str, float] | None = None
     evidence: list[dict[str, Any]] | None = None
+    tuning: dict[str, Any] | None = None
 
     def freeze(self) -> Diagnosis:
         """The typed, frozen diagnosis of this draft."""
@@ -375,6 +380,7 @@ class DiagnosisDraft:
             notes=tuple(self.notes),
             probabilities=dict(self.probabilities) if self.probabilities is not None else None,
             evidence=tuple(self.evidence) if self.evidence is not None else None,
+            tuning=self.tuning,
         )
 
 

@@ -317,6 +317,27 @@ class ScaleConfig(_Strict):
         return v
 
 
+class ControllerConfig(_Strict):
+    """How the loop's controller takes its settings: the retuning proposal is shown in this
+    form (issue 48; ``diagnosis/controller_forms.py``)."""
+
+    form: Literal["ideal", "parallel", "series"] = "ideal"
+    gain: Literal["gain", "proportional_band"] = "gain"
+    integral: Literal["seconds", "minutes", "repeats_per_minute"] = "seconds"
+    action: Literal["reverse", "direct"] | None = None
+    pv_span: float | None = Field(None, gt=0, le=1e12)
+    """PV units that make 100 % of span (the gain is then dimensionless, % per %)."""
+
+    @model_validator(mode="after")
+    def _band_needs_span(self) -> ControllerConfig:
+        if self.gain == "proportional_band" and self.pv_span is None:
+            raise ValueError(
+                "gain = 'proportional_band' needs pv_span, the PV's range in engineering "
+                "units (e.g. pv_span = 200.0 for 0-200 degC)"
+            )
+        return self
+
+
 class LoopConfig(_Strict):
     """A control loop and where its signals come from."""
 
@@ -334,6 +355,8 @@ class LoopConfig(_Strict):
     description: str = ""
     stiction_limit: float = Field(2.0, gt=0, le=100)
     """S (% of valve travel) at which the valve is due for maintenance (stiction report)."""
+    controller: ControllerConfig = ControllerConfig()
+    """The controller's form, gain and integral units and action (the retuning's output)."""
 
     def tags(self) -> dict[str, str]:
         """Signal → tag address, for the signals this loop has."""

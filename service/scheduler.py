@@ -92,6 +92,8 @@ class LoopSchedule:
     report changes only; SP and mode otherwise)."""
     stiction_limit: float = 2.0
     """The valve's S limit, % of travel (its trend's projection)."""
+    controller: tuple[tuple[str, object], ...] = ()
+    """The controller's form (``ControllerConfig`` items): the retuning's output form."""
 
 
 @dataclass
@@ -329,6 +331,7 @@ class DiagnosisScheduler:
                 notes,
                 quantify,
                 baseline,
+                dict(sched.controller),
             )
         if quantify:
             self._schedule_quantification(st, payload, sched.period_s)

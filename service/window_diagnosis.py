@@ -11,7 +11,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis import Baseline, diagnose_loop
+from plantcheck.diagnosis import Baseline, ChainParams, diagnose_loop
+from plantcheck.diagnosis.controller_forms import ControllerForm
+from plantcheck.diagnosis.tuning_proposal import TuningSettings
 
 FloatArray = NDArray[np.float64]
 
@@ -33,6 +35,7 @@ def diagnose_window(
     notes: list[str] | None = None,
     quantify: bool = True,
     baseline: tuple[float, str] | None = None,
+    controller: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The diagnosis (contracts §2 JSON object) of one aligned window.
 
@@ -40,7 +43,8 @@ def diagnose_window(
     ``sample_time_s`` seconds (missing samples NaN). The chain is chosen by ``diagnose_loop``
     (the advanced one when MV was stored for at least half the window).
     ``quantify`` off skips the Hammerstein S/J estimate (methods §6.1), the costly part.
-    ``baseline`` is the loop's healthy error σ (PV units) and its source, when known.
+    ``baseline`` is the loop's healthy error σ (PV units) and its source, when known;
+    ``controller`` the loop's controller form (``ControllerForm`` fields) for the retuning.
     """
     pv, op = values["pv"], values["op"]
     sp = values.get("sp")
@@ -56,6 +60,9 @@ def diagnose_window(
         auto=auto,
         loop_type=loop_type,
         quantify=quantify,
+        params=ChainParams(retuning=TuningSettings(form=ControllerForm(**controller)))
+        if controller
+        else None,
         baseline=Baseline(baseline[0], source=baseline[1]) if baseline is not None else None,
     )
     return d.with_notes_first(notes or []).to_dict()

@@ -104,6 +104,8 @@ def map_toml(
                 f'id = "{spec.id}"',
                 f'type = "{spec.type}"',
                 f'source = "{name}"',
+                # the PV's span: a retuning proposal's gain in % of OP per % of span
+                f"controller = {{ pv_span = {spec.range[1] - spec.range[0]:g} }}",
             ]
         if e.signal != "MV" or spec.expose_mv:
             address = (

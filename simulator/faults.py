@@ -18,12 +18,15 @@ one line) and POSIX signals (SIGUSR1 = drop connections, SIGUSR2 = restart for 5
     bad SECONDS [LOOP [SIGNAL]]
     restart SECONDS [modbus|opcua|both]
     clear                         (end every active fault)
+    tune LOOP KC TI_S             (the loop's PI from now on: Kc in % of travel per % of
+                                   span, negative for direct action; Ti in seconds)
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -112,6 +115,15 @@ class AdminError(ValueError):
     """A malformed admin command (the message says what is expected)."""
 
 
+@dataclass(frozen=True)
+class Retune:
+    """``tune LOOP KC TI_S``: new PI settings for one loop (issue 48: a proposal applied)."""
+
+    loop: str
+    Kc: float
+    Ti_s: float
+
+
 _TARGETS = ("modbus", "opcua", "both")
 
 
@@ -125,8 +137,9 @@ def _seconds(word: str) -> float:
     return v
 
 
-def parse_command(line: str, loops: set[str]) -> ActiveFault | str:
-    """An admin command line → the fault to start, or ``"status"`` / ``"clear"``."""
+def parse_command(line: str, loops: set[str]) -> ActiveFault | Retune | str:
+    """An admin command line → the fault to start, the retuning, or ``"status"`` /
+    ``"clear"``."""
     words = line.split()
     if not words:
         raise AdminError("empty command; try: status, drop, stall, exception, nan, bad, restart")
@@ -160,7 +173,21 @@ def parse_command(line: str, loops: set[str]) -> ActiveFault | str:
         if signal and signal not in SIGNALS:
             raise AdminError(f"signal must be one of {', '.join(SIGNALS)}")
         return ActiveFault(cmd, "both", now + _seconds(args[0]), loop, signal)
-    raise AdminError(f"unknown command {cmd!r}; try: status, drop, stall, exception, nan, bad")
+    if cmd == "tune":
+        if len(args) != 3:
+            raise AdminError("usage: tune LOOP KC TI_S")
+        if args[0] not in loops:
+            raise AdminError(f"unknown loop {args[0]!r}")
+        try:
+            kc, ti = float(args[1]), float(args[2])
+        except ValueError:
+            raise AdminError("KC and TI_S must be numbers") from None
+        if not (math.isfinite(kc) and kc != 0 and math.isfinite(ti) and ti > 0):
+            raise AdminError("KC must be a non-zero number and TI_S a positive one")
+        return Retune(args[0], kc, ti)
+    raise AdminError(
+        f"unknown command {cmd!r}; try: status, drop, stall, exception, nan, bad, tune"
+    )
 
 
 async def serve_admin(
@@ -169,6 +196,7 @@ async def serve_admin(
     faults: FaultState,
     loops: set[str],
     status: Callable[[], dict[str, object]],
+    retune: Callable[[Retune], None] | None = None,
 ) -> asyncio.Server:
     """Start the line-oriented admin server (local use only: bind to loopback)."""
 
@@ -182,6 +210,11 @@ async def serve_admin(
                     elif cmd == "clear":
                         faults.clear()
                         reply = "ok"
+                    elif isinstance(cmd, Retune):
+                        if retune is None:
+                            raise AdminError("this simulator cannot retune")
+                        retune(cmd)
+                        reply = f"ok tune {cmd.loop} Kc={cmd.Kc:g} Ti_s={cmd.Ti_s:g}"
                     else:
                         assert isinstance(cmd, ActiveFault)
                         faults.start(cmd)

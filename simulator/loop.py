@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -196,6 +196,12 @@ class ClosedLoop:
         self.auto = True
         self.a_filter = math.exp(-ts / cfg.pv_filter_s) if cfg.pv_filter_s > 0 else 0.0
         self.pv_filtered: float | None = None
+
+    def set_controller(self, Kc: float, Ti_s: float) -> None:
+        """New PI settings from the next sample on; the integral state carries the output
+        over, so only the proportional term's change moves OP (a retuning on line)."""
+        c = replace(self.cfg.controller, Kc=Kc, Ti_s=Ti_s)
+        self.cfg = replace(self.cfg, controller=c)
 
     def output(self, out_d: float = 0.0) -> float:
         """The true process value (% of span) before measurement noise."""

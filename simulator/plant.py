@@ -15,6 +15,7 @@ from datetime import datetime, timedelta
 import numpy as np
 from numpy.typing import NDArray
 
+from plantcheck.simulator.faults import Retune
 from plantcheck.simulator.loop import ClosedLoop
 from plantcheck.simulator.scenario import SIGNALS, DisturbanceSpec, LoopSpec, Scenario
 
@@ -65,6 +66,7 @@ class LiveLoop:
         self.loop = ClosedLoop(spec.to_config(ts, seed))
         self.disturbances = [OnlineDisturbance(d, ts, self.rng) for d in spec.disturbances]
         self.schedule = sorted(spec.sp_schedule)
+        self.controller_schedule = sorted(spec.controller_schedule)
 
     def set_point(self, t: float) -> float:
         """Set point (% of span) at simulated time ``t`` from the schedule."""
@@ -86,6 +88,9 @@ class LiveLoop:
             else:
                 out_d += d.value(t)
         noise = float(self.rng.normal(0.0, self.spec.noise_std)) if self.spec.noise_std else 0.0
+        while self.controller_schedule and self.controller_schedule[0][0] <= t:
+            _, kc, ti = self.controller_schedule.pop(0)
+            self.loop.set_controller(kc, ti)
         auto = not any(a <= t < b for a, b in self.spec.manual)
         self.loop.auto = auto
         sp = self.set_point(t)
@@ -125,6 +130,10 @@ class Plant:
     def time(self) -> datetime:
         """Simulated UTC time of the latest sample."""
         return self.start + timedelta(seconds=self.t)
+
+    def retune(self, cmd: Retune) -> None:
+        """New PI settings for one loop from the next sample on (the admin ``tune``)."""
+        self.loops[self.index[cmd.loop]].loop.set_controller(cmd.Kc, cmd.Ti_s)
 
     def step(self) -> None:
         """Advance every loop by one sample."""

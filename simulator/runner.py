@@ -131,7 +131,9 @@ class PlantRunner:
         a = self.scenario.admin
         if a.enabled:
             ids = {s.id for s in self.scenario.loop}
-            self._admin = await serve_admin(a.host, a.port, self.faults, ids, self.status)
+            self._admin = await serve_admin(
+                a.host, a.port, self.faults, ids, self.status, self.plant.retune
+            )
         loop = asyncio.get_running_loop()
         with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):
             loop.add_signal_handler(

@@ -179,6 +179,9 @@ class LoopSpec(_Strict):
     """Set-point changes ``[[time_s, sp %], ...]`` from the start of the simulation."""
     sp_repeat_s: float = Field(0.0, ge=0)
     """Repeat ``sp_schedule`` with this period (0: once)."""
+    controller_schedule: list[tuple[float, float, float]] = []
+    """Controller changes ``[[time_s, Kc, Ti_s], ...]``: the PI settings from that simulated
+    second on (a retuning; the admin command ``tune`` does it at run time)."""
     disturbances: list[DisturbanceSpec] = []
     manual: list[tuple[float, float]] = []
     """Manual-mode intervals ``[[from_s, to_s], ...]`` (OP held, Mode = 0)."""

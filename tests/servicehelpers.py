@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import subprocess
 import sys
 import time
@@ -11,6 +13,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import httpx
+import pytest
 from helpers import free_port
 
 from plantcheck.simulator.export import map_toml, write_records
@@ -161,3 +164,43 @@ def wait_diagnosed(
         f"only {sum(lp['cause'] is not None for lp in loops)} of {n} diagnosed, "
         f"S of {sorted(sticky - {lp['id'] for lp in loops if lp['S'] is not None})} missing"
     )
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def dump_dom(url: str, profile: Path, offline: bool = False, tz: str | None = None) -> str:
+    """The DOM after the page's scripts ran, from headless Chromium; ``offline``: every host
+    but loopback fails to resolve, as on a plant network without internet."""
+    exe = _chromium()
+    if exe is None:
+        pytest.skip("Chromium is not installed (make test installs Debian's chromium as root)")
+    out = subprocess.run(
+        [
+            exe,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={profile}",
+            "--virtual-time-budget=5000",
+            *(["--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1"] if offline else []),
+            "--dump-dom",
+            url,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+        env={**os.environ, "TZ": tz} if tz else None,
+    )
+    return out.stdout

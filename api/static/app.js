@@ -154,5 +154,30 @@ const plantcheck = (() => {
     return u;
   }
 
-  return { sortable, sortBy, autoRefresh, trends, pvop, stiction };
+  /* The retuning's prediction (issue 48): the identified process under the present and the
+     proposed controller, after a unit set-point step or a load step worth one PV unit. */
+  function retuning(el, pred, which) {
+    const cur = pred.current_response, prop = pred.proposed_response;
+    if (!el || !prop) return null;
+    const series = [{}, { label: "proposed", stroke: "#2e7d32", width: 1.6 }];
+    const rows = [prop.t_s, prop[which]];
+    if (cur) {
+      // the present controller's response on its own time axis, read at the proposal's times
+      series.push({ label: "present", stroke: "#c62828", width: 1.2 });
+      rows.push(prop.t_s.map((t) => {
+        let i = cur.t_s.findIndex((x) => x >= t);
+        return i < 0 ? null : cur[which][i];
+      }));
+    }
+    const title = which === "sp" ? "Predicted PV after a unit set-point step"
+      : "Predicted PV after a load step worth one PV unit";
+    const u = new uPlot({
+      title, width: width(el), height: 220, scales: { x: { time: false } },
+      axes: [{ label: "seconds after the step" }, {}], series,
+    }, rows, el);
+    el.dataset.rendered = "true";
+    return u;
+  }
+
+  return { sortable, sortBy, autoRefresh, trends, pvop, stiction, retuning };
 })();

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
-import shutil
 import subprocess
 import time
 from datetime import datetime, timedelta
@@ -17,7 +15,7 @@ from pathlib import Path
 import httpx
 import pytest
 from helpers import RunCli, free_port
-from servicehelpers import API_KEY, CLI, Service, start_service, write_config
+from servicehelpers import API_KEY, CLI, Service, dump_dom, start_service, write_config
 
 from plantcheck.storage.database import upgrade
 
@@ -265,46 +263,6 @@ def _storage_config(folder: Path, url: str, buffer: str | None = None) -> Path:
 
 
 # -- the web page, in a real browser --------------------------------------------------------
-
-
-def _chromium() -> str | None:
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
-
-
-def dump_dom(url: str, profile: Path, offline: bool = False, tz: str | None = None) -> str:
-    """The DOM after the page's scripts ran, from headless Chromium; ``offline``: every host
-    but loopback fails to resolve, as on a plant network without internet."""
-    exe = _chromium()
-    if exe is None:
-        pytest.skip("Chromium is not installed (make test installs Debian's chromium as root)")
-    out = subprocess.run(
-        [
-            exe,
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            f"--user-data-dir={profile}",
-            "--virtual-time-budget=5000",
-            *(["--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1"] if offline else []),
-            "--dump-dom",
-            url,
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=True,
-        env={**os.environ, "TZ": tz} if tz else None,
-    )
-    return out.stdout
 
 
 def test_page_shows_the_health_table_sorted_and_coloured(service: Service, tmp_path: Path) -> None:

@@ -199,3 +199,30 @@ def test_scheduled_fault_from_the_scenario() -> None:
         client.close()
 
     run_with_plant(sc, body)
+
+
+def test_a_loop_is_retuned_at_run_time_and_by_its_schedule() -> None:
+    """Issue 48: a proposal is applied with the admin ``tune`` command (or the scenario's
+    ``controller_schedule``) and the loop runs on with the new PI from the next sample."""
+    sc = scenario_on_free_ports(speed=20.0)
+    loops = list(sc.loop)
+    loops[0] = loops[0].model_copy(update={"controller_schedule": [(3.0, 0.3, 4.0)]})
+    sc = sc.model_copy(
+        update={"loop": loops, "opcua": sc.opcua.model_copy(update={"enabled": False})}
+    )
+
+    async def body(runner: PlantRunner) -> None:
+        admin = ("127.0.0.1", sc.admin.port)
+        pic = runner.plant.loops[runner.plant.index["PIC301"]].loop
+        assert (pic.cfg.controller.Kc, pic.cfg.controller.Ti_s) == (3.25, 8.0)
+        reply = await send_admin(*admin, "tune PIC301 1.2 9.5")
+        assert reply == "ok tune PIC301 Kc=1.2 Ti_s=9.5"
+        assert (pic.cfg.controller.Kc, pic.cfg.controller.Ti_s) == (1.2, 9.5)
+        assert (await send_admin(*admin, "tune PIC301 0 9")).startswith("error: KC must be")
+        assert (await send_admin(*admin, "tune XIC9 1 9")).startswith("error: unknown loop")
+        fic = runner.plant.loops[0].loop
+        while runner.plant.t < 4.0:
+            await asyncio.sleep(0.05)
+        assert (fic.cfg.controller.Kc, fic.cfg.controller.Ti_s) == (0.3, 4.0)
+
+    run_with_plant(sc, body)

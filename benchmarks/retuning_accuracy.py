@@ -1,0 +1,138 @@
+"""Identification and retuning on simulated loops (issue 48's evidence), printed as figures.
+
+    python benchmarks/retuning_accuracy.py [--cases 60] [--seed 5000]
+
+1. Identification: the share of loops whose gain, time constant and dead time are all within
+   20 % of the truth (the dead time the simulator applies, whole samples), for loops with
+   set-point steps and for routine operation (none), at three load levels; "no model" counts
+   as a miss and is listed apart.
+2. Proposals for aggressive and sluggish loops: the share with a proposal; among them the share
+   whose true closed loop has a gain margin of at least 1.7 and whose error integral under a
+   set-point and a load step is at most 0.7 times the present tuning's. Well-tuned loops: the
+   share with no proposal or one that changes that integral by less than 20 %.
+3. The cost of identification and proposal, ms per 3,600 samples (median and 95th percentile).
+
+The loops are ``simulator/tuning_cases.py``'s; nothing here is tuned on real records.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from plantcheck.diagnosis.identification import ProcessModel, identify_process
+from plantcheck.diagnosis.retuning import PISetting, RetuneParams, predict, robustness
+from plantcheck.diagnosis.tuning import identify_pi
+from plantcheck.diagnosis.tuning_proposal import tuning_for
+from plantcheck.simulator.tuning_cases import TuningCase, tuning_case
+
+
+def _steps(case: TuningCase) -> np.ndarray:
+    return np.flatnonzero(np.diff(case.record.sp) != 0) + 1
+
+
+def _within(case: TuningCase, m: ProcessModel, tol: float = 0.2) -> bool:
+    p = case.process
+    theta = case.effective_dead_time_s
+    ok_k = m.K is not None and abs(m.K / p.K - 1.0) <= tol
+    ok_th = m.theta_s is not None and abs(m.theta_s - theta) <= tol * max(theta, case.ts)
+    ok_tau = p.kind == "integrating" or (
+        m.tau_s is not None and abs(m.tau_s / p.tau_s - 1.0) <= tol
+    )
+    return bool(ok_k and ok_th and ok_tau)
+
+
+def _truth(case: TuningCase) -> ProcessModel:
+    p = case.process
+    integ = p.kind == "integrating"
+    return ProcessModel(
+        kind="ipdt" if integ else "fopdt",
+        K=p.K,
+        tau_s=None if integ else p.tau_s,
+        theta_s=case.effective_dead_time_s,
+    )
+
+
+def identification(n: int, seed: int) -> None:
+    print("1. identification within 20 % (K, tau, theta)")
+    for steps in (True, False):
+        for loads in (0.0, 0.3, 1.0):
+            hits = none = 0
+            for i in range(n):
+                case = tuning_case(seed + i, "good", loads, sp_steps=steps)
+                r = case.record
+                m = identify_process(
+                    r.pv, r.op, case.ts, integrating=case.process.kind == "integrating",
+                    sp_steps=_steps(case),
+                )  # fmt: skip
+                none += m.kind is None
+                hits += m.kind is not None and _within(case, m)
+            what = "set-point steps" if steps else "routine (no steps)"
+            print(
+                f"   {what:20s} loads x{loads:<4g}: {hits}/{n} within 20 % "
+                f"({100 * hits / n:.0f} %), {none} without a model"
+            )
+
+
+def proposals(n: int, seed: int, loads: float) -> list[float]:
+    print(f"2. proposals (loads x{loads:g}, set-point steps)")
+    params = RetuneParams()
+    cost: list[float] = []
+    for tuning in ("aggressive", "sluggish", "good"):
+        made = robust = better = small = 0
+        for i in range(n):
+            case = tuning_case(seed + 10_000 + i, tuning, loads)  # type: ignore[arg-type]
+            r = case.record
+            integ = case.process.kind == "integrating"
+            t0 = time.perf_counter()
+            pi = identify_pi(r.op, r.pv, r.sp, case.ts)
+            out = tuning_for(
+                f"{'sluggish' if tuning == 'good' else tuning}_tuning", r.pv, r.op, case.ts,
+                "level" if integ else "flow", _steps(case), None, pi,
+            )  # fmt: skip
+            cost.append((time.perf_counter() - t0) * 1e3 * 3600 / r.pv.size)
+            assert out is not None
+            prop = out.json["proposed"]
+            if prop is None:
+                continue
+            made += 1
+            setting = PISetting(prop["Kc"], prop["Ti_s"])
+            truth = _truth(case)
+            present = PISetting(case.controller.Kc, case.controller.Ti_s)
+            robust += robustness(truth, setting, case.ts).gain_margin >= 1.7
+            ratio = (
+                predict(truth, setting, case.ts, params).iae
+                / predict(truth, present, case.ts, params).iae
+            )
+            better += ratio <= 0.7
+            small += abs(ratio - 1.0) < 0.2
+        if tuning == "good":
+            print(
+                f"   good      : {n - made}/{n} no proposal, {small} with the error integral "
+                f"within 20 %: {n - made + small}/{n} as asked"
+            )
+        else:
+            print(
+                f"   {tuning:10s}: proposal for {made}/{n}; gain margin >= 1.7 in {robust}/"
+                f"{made}; error integral <= 0.7x in {better}/{made}"
+            )
+    return cost
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=60, help="loops per figure")
+    ap.add_argument("--seed", type=int, default=5000, help="first seed")
+    a = ap.parse_args()
+    identification(a.cases, a.seed)
+    cost = proposals(a.cases, a.seed, 0.3)
+    print(
+        f"3. identification + proposal: median {np.median(cost):.1f} ms, 95th percentile "
+        f"{np.percentile(cost, 95):.1f} ms per 3,600 samples"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,381 @@
+"""Process identification from a closed-loop window (issue 48 item 1): first order plus dead
+time (FOPDT) for self-regulating loops, integrator plus dead time (IPDT) for levels, from the
+controller output OP (%) to the process variable PV (engineering units).
+
+The controller output is recorded, so closed-loop data identify the process by the direct
+method (Ljung 1999, §13.4), provided something other than the PV's own noise moves OP:
+set-point steps, or loads large against the noise. The model is fitted as an *output error*
+model (its simulated output against the measured PV, never the one-step prediction an ARX fit
+uses, which a coloured load biases towards a fast, low-gain process):
+
+    PV(k) ≈ K·x_{τ,θ}(k) + c + g·k,
+
+x_{τ,θ} being OP delayed by θ through a unit first-order lag of time constant τ (for an IPDT
+model its running integral), c the operating point and g a slow drift the loads leave. For
+each (τ, θ) the three linear parameters are a least-squares solution; (τ, θ) are searched on
+a coarse grid and then refined around the best (separable least squares, Golub & Pereyra
+2003). Where set-point steps are present only the stretches around them are fitted: there OP
+moves for the step and the loads matter least.
+
+Each parameter has a standard deviation: K's from the regression's covariance, τ's and θ's
+from the width of the fit's valley (the values whose residual sum of squares is within one
+noise variance of the best, the profile-likelihood interval), with the residual's correlation
+counted (fewer independent samples than samples). The fit is 100·(1 − ‖residual‖/‖PV − mean‖),
+the figure MATLAB's ``compare`` prints. Where the data cannot identify the process the result
+says why instead of guessing.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from plantcheck.diagnosis.signal_tools import FloatArray, first_order_lags, noise_sigma
+
+ModelKind = Literal["fopdt", "ipdt"]
+
+
+@dataclass(frozen=True)
+class IdentificationParams:
+    """Limits of the identification."""
+
+    max_dead_time_share: float = 0.25
+    """Dead times tried: up to this share of the fitted stretch."""
+    max_dead_time_samples: int = 600
+    """... and at most this many samples."""
+    time_constants: int = 16
+    """Time constants on the coarse grid, log-spaced from one sample to a third of the data."""
+    min_fit_percent: float = 70.0
+    """A simulated-output fit below this is no model (the data do not show the process)."""
+    min_excitation: float = 4.0
+    """OP must move by this many times its sample-to-sample noise σ: below, only noise moves
+    the loop and the direct method reads the controller's inverse (Ljung 1999, §13.4)."""
+    min_auto_share: float = 0.5
+    """Share of the window in automatic below which the loop is called 'in manual'."""
+    step_before: int = 20
+    """Samples kept before each set-point step when the stretches around steps are fitted."""
+    min_samples: int = 60
+
+
+@dataclass(frozen=True)
+class ProcessModel:
+    """An identified process, or why there is none (``kind`` None, ``reason``).
+
+    K is in PV units per % of OP for ``fopdt`` and in PV units per second per % of OP for
+    ``ipdt``; τ (``fopdt`` only) and θ in seconds, each with its standard deviation (``*_sd``);
+    ``fit_percent`` the simulated-output fit; ``source`` what excited the data: ``set-point
+    steps`` or ``routine`` operation."""
+
+    kind: ModelKind | None
+    K: float | None = None
+    tau_s: float | None = None
+    theta_s: float | None = None
+    K_sd: float | None = None
+    tau_sd: float | None = None
+    theta_sd: float | None = None
+    fit_percent: float | None = None
+    source: str | None = None
+    reason: str = ""
+
+    def to_json(self) -> dict[str, object]:
+        """contracts §2 ``tuning.model`` (the ``*_sd``, ``source`` and ``reason`` optional)."""
+        return {
+            "type": self.kind,
+            "K": _r(self.K),
+            "tau_s": _r(self.tau_s),
+            "theta_s": _r(self.theta_s),
+            "K_sd": _r(self.K_sd),
+            "tau_sd": _r(self.tau_sd),
+            "theta_sd": _r(self.theta_sd),
+            "fit_percent": None if self.fit_percent is None else round(self.fit_percent, 1),
+            "source": self.source,
+            "reason": self.reason or None,
+        }
+
+
+def _r(x: float | None) -> float | None:
+    """Three significant digits: what an identified parameter can mean."""
+    return None if x is None or x == 0 else float(f"{x:.3g}")
+
+
+def no_model(reason: str) -> ProcessModel:
+    return ProcessModel(kind=None, reason=reason)
+
+
+def _regressors(
+    u: FloatArray, taus: FloatArray, integrating: bool, ts: float
+) -> NDArray[np.float64]:
+    """x for each pole (rows): OP through a unit first-order lag started at rest at the
+    window's first OP, or OP's running integral (s·%) for an integrating process; then
+    delayed by one sample (a zero-order hold: PV(k) answers OP up to k−1)."""
+    if integrating:
+        x = np.cumsum(u - u[0])[None, :] * ts
+    else:
+        x = first_order_lags(u, np.exp(-1.0 / np.maximum(taus, 1e-9)).tolist()) - u[0]
+    return np.concatenate([np.zeros((x.shape[0], 1)), x[:, :-1]], axis=1)
+
+
+def _sse_grid(
+    y: FloatArray, x: NDArray[np.float64], delays: NDArray[np.int64], segments: list[slice]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Residual sum of squares and gain K of PV ≈ K·x(k − d) + c_s + g_s·k over the samples
+    of ``segments`` (each with its own level c_s and drift g_s), for every row of ``x`` (a
+    time constant) and every delay d in ``delays`` (ascending): arrays (poles, delays)."""
+    n = y.size
+    rows = np.zeros(n, dtype=bool)
+    cols = []
+    for seg in segments:
+        rows[seg] = True
+        # each segment's level and drift, orthonormal in closed form (disjoint supports)
+        length = seg.stop - seg.start
+        t = np.arange(length, dtype=np.float64) - (length - 1) / 2.0
+        for v in (np.ones(length), t):
+            col = np.zeros(n)
+            norm = math.sqrt(float(v @ v))
+            col[seg] = v / norm if norm > 0 else 0.0
+            cols.append(col)
+    q = np.column_stack(cols)[rows]
+    yr = y[rows] - q @ (q.T @ y[rows])
+    max_d = int(delays[-1])
+    xp = np.concatenate([np.zeros((x.shape[0], max_d)), x], axis=1)
+    # xs[p, i, r] = x[p, k_r - d_i] for the fitted samples k_r: one gather, no window copy
+    xs = xp[:, (max_d - delays)[:, None] + np.flatnonzero(rows)[None, :]]
+    sxy = xs @ yr
+    proj = xs @ q
+    sxx = np.einsum("pdt,pdt->pd", xs, xs) - np.sum(proj**2, axis=2)
+    syy = float(yr @ yr)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.where(sxx > 1e-12, sxy / sxx, 0.0)
+        sse = np.where(sxx > 1e-12, syy - sxy * gain, syy)
+    return sse, gain
+
+
+def _segments(n: int, steps: NDArray[np.int64], before: int, length: int | None) -> list[slice]:
+    """The stretches fitted: the whole window without set-point steps; else from ``before``
+    samples ahead of each step to ``length`` samples after it (None: the next step), where
+    the step's OP moves dominate the loads."""
+    if steps.size == 0:
+        return [slice(0, n)]
+    out: list[slice] = []
+    bounds = [*steps.tolist(), n]
+    for k, nxt in itertools.pairwise(bounds):
+        lo = max(0, k - before, out[-1].stop if out else 0)
+        hi = nxt if length is None else min(nxt, k + length)
+        if hi - lo >= 10:
+            out.append(slice(lo, hi))
+    return out or [slice(0, n)]
+
+
+def _width(values: FloatArray, sse: FloatArray, best: int, allowance: float) -> float:
+    """Half the span of ``values`` whose SSE is within ``allowance`` of the best one's (the
+    profile-likelihood 1-σ interval), at least half a grid step."""
+    inside = values[sse <= sse[best] + allowance]
+    steps = np.diff(np.sort(values))
+    half_step = float(steps[steps > 0].min()) / 2.0 if np.any(steps > 0) else 0.0
+    return max(float(inside.max() - inside.min()) / 2.0, half_step)
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """The best (τ, θ) of one search, in samples, with its gain, SSE and the SSE profiles
+    along τ and θ through it (for the parameters' widths)."""
+
+    tau: float
+    theta: float
+    K: float
+    sse: float
+    x: FloatArray
+    taus: FloatArray
+    sse_tau: FloatArray
+    thetas: FloatArray
+    sse_theta: FloatArray
+
+
+ALTERNATIONS = 3
+"""Rounds of the fine search's θ-then-τ walk (it stops early once τ stays)."""
+FRACTIONS = (0.0, 0.25, 0.5, 0.75)
+"""Sub-sample dead times of the fine search: a dead time of 0.6 s sampled every 0.5 s is no
+whole number of samples, and rounding it is a 20 % error."""
+
+
+def _block_means(x: FloatArray, b: int) -> FloatArray:
+    m = x.size // b * b
+    return np.asarray(x[:m].reshape(-1, b).mean(axis=1), dtype=np.float64)
+
+
+COARSE_SAMPLES = 500
+"""The coarse search runs on block means of about this many samples: it only has to find
+the valley, which the fine search at full rate then walks down."""
+
+
+def _coarse(
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    integrating: bool,
+    segments: list[slice],
+    p: IdentificationParams,
+) -> tuple[float, int, int]:
+    """The best (τ, θ) of a coarse grid on block means of about ``COARSE_SAMPLES``: τ and θ
+    in samples, and the grid's θ step in samples."""
+    span = sum(s.stop - s.start for s in segments)
+    b = max(1, span // COARSE_SAMPLES)
+    cseg = [slice(s.start // b, max(s.start // b + 1, s.stop // b)) for s in segments]
+    cspan = sum(s.stop - s.start for s in cseg)
+    max_d = int(min(p.max_dead_time_samples / b, max(1, p.max_dead_time_share * cspan)))
+    taus = np.array([0.0]) if integrating else np.geomspace(0.3, max(2.0, cspan / 3.0), 16)
+    coarse_d = np.unique(np.round(np.linspace(0, max_d, min(max_d + 1, 32)))).astype(np.int64)
+    pv_b, op_b = _block_means(pv, b), _block_means(op, b)
+    sse, _ = _sse_grid(pv_b, _regressors(op_b, taus, integrating, ts * b), coarse_d, cseg)
+    i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    d_step = int(np.max(np.diff(coarse_d))) if coarse_d.size > 1 else 1
+    return float(taus[i]) * b, int(coarse_d[j]) * b, d_step * b
+
+
+def _search(
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    integrating: bool,
+    segments: list[slice],
+    p: IdentificationParams,
+) -> _Fit:
+    """The coarse grid (``_coarse``), then at full rate: about 16 dead times around its best
+    with τ from 0.6 to 1.6 times its value; every whole and quarter sample of θ around that
+    best; τ from 0.85 to 1.18 times it at the best θ."""
+    tau0, d0, width = _coarse(pv, op, ts, integrating, segments, p)
+    fine_d = np.unique(
+        np.round(np.linspace(max(0, d0 - width), d0 + width, min(2 * width + 1, 17)))
+    ).astype(np.int64)
+    taus = np.array([0.0]) if integrating else tau0 * np.geomspace(0.6, 1.6, 7)
+    sse, _ = _sse_grid(pv, _regressors(op, taus, integrating, ts), fine_d, segments)
+    i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    tau1, d1 = float(taus[i]), int(fine_d[j])
+    step = int(np.max(np.diff(fine_d))) if fine_d.size > 1 else 1
+    near_d = np.arange(max(0, d1 - step), d1 + step + 1)
+    thetas = (near_d[None, :] + np.asarray(FRACTIONS)[:, None]).ravel().astype(np.float64)
+    for _ in range(ALTERNATIONS):
+        # θ in quarter samples at τ1, then τ around τ1 at that θ
+        x = _regressors(op, np.array([tau1]), integrating, ts)
+        shifted = np.concatenate([np.zeros((1, 1)), x[:, :-1]], axis=1)
+        xf = np.concatenate([(1.0 - f) * x + f * shifted for f in FRACTIONS])
+        sse_f, _ = _sse_grid(pv, xf, near_d, segments)  # (fraction, delay)
+        f, j = np.unravel_index(int(np.argmin(sse_f)), sse_f.shape)
+        frac, d2 = FRACTIONS[f], int(near_d[j])
+        near_taus = np.array([0.0]) if integrating else tau1 * np.geomspace(0.85, 1.18, 7)
+        x = _regressors(op, near_taus, integrating, ts)
+        shifted = np.concatenate([np.zeros((x.shape[0], 1)), x[:, :-1]], axis=1)
+        xt = (1.0 - frac) * x + frac * shifted
+        sse_t, gain = _sse_grid(pv, xt, np.array([d2]), segments)
+        k = int(np.argmin(sse_t[:, 0]))
+        if integrating or near_taus[k] == tau1:
+            break
+        tau1 = float(near_taus[k])
+    return _Fit(
+        tau=float(near_taus[k]),
+        theta=d2 + frac,
+        K=float(gain[k, 0]),
+        sse=float(sse_t[k, 0]),
+        x=_delayed(xt[k], d2),
+        taus=near_taus.astype(np.float64),
+        sse_tau=sse_t[:, 0],
+        thetas=thetas,
+        sse_theta=sse_f.ravel(),
+    )
+
+
+def _delayed(x: FloatArray, d: int) -> FloatArray:
+    out = np.zeros_like(x)
+    out[d:] = x[: x.size - d]
+    return out
+
+
+def identify_process(
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    *,
+    integrating: bool = False,
+    sp_steps: NDArray[np.int64] | None = None,
+    auto_share: float | None = None,
+    params: IdentificationParams | None = None,
+) -> ProcessModel:
+    """FOPDT (``integrating`` False) or IPDT model from OP (%) to PV over a window sampled
+    every ``ts`` seconds; ``sp_steps`` the samples where the set point steps (the fit is then
+    confined to the stretches after them, about four open-loop settling times each, found by a first
+    fit from the first step on), ``auto_share`` the share of the window in automatic (None:
+    unknown)."""
+    p = params or IdentificationParams()
+    pv = np.asarray(pv, dtype=np.float64)
+    op = np.asarray(op, dtype=np.float64)
+    n = pv.size
+    if n < p.min_samples or not (np.all(np.isfinite(pv)) and np.all(np.isfinite(op))):
+        return no_model(f"too few usable samples ({n}; at least {p.min_samples} needed)")
+    if auto_share is not None and auto_share < p.min_auto_share:
+        return no_model(
+            f"the loop was in manual for {100 * (1 - auto_share):.0f} % of the window: "
+            "identify it from a window in automatic, or from a bump test in manual"
+        )
+    op_noise = noise_sigma(op)  # the sample-to-sample part: an oscillation is no noise
+    smooth = np.convolve(op, np.full(5, 0.2), mode="valid") if n >= 5 else op
+    op_move = float(np.ptp(smooth))  # an integrating loop's OP moves for a while only
+    if op_move <= p.min_excitation * op_noise or op_move < 0.2:
+        return no_model(
+            f"OP moved by {op_move:.2g} % only: nothing excites the process (a set-point "
+            "step or a bump test would)"
+        )
+    steps = np.asarray(sp_steps if sp_steps is not None else [], dtype=np.int64)
+    segments = _segments(n, steps, p.step_before, None)
+    if steps.size:
+        tau0, d0, _ = _coarse(pv, op, ts, integrating, segments, p)
+        settle = int(4.0 * (tau0 + d0)) + p.step_before
+        segments = _segments(n, steps, p.step_before, max(settle, 4 * p.step_before))
+    fit = _search(pv, op, ts, integrating, segments, p)
+    rows = np.concatenate([np.arange(s.start, s.stop) for s in segments])
+    total = sum(float(np.sum((pv[s] - pv[s].mean()) ** 2)) for s in segments)
+    fit_pct = 100.0 * (1.0 - math.sqrt(max(fit.sse, 0.0) / total)) if total > 0 else 0.0
+    if fit_pct < p.min_fit_percent or fit.K == 0.0:
+        return no_model(
+            f"the best model explains the PV poorly (fit {fit_pct:.0f} %, "
+            f"{p.min_fit_percent:g} % needed): loads or noise move the PV more than OP does"
+        )
+    lag1 = _residual_lag1(pv[rows], fit.x[rows], fit.K)
+    allowance = fit.sse / max(rows.size - 5, 1) * (1.0 + lag1) / (1.0 - lag1)
+    xr = fit.x[rows] - fit.x[rows].mean()
+    sxx = float(xr @ xr)
+    K_sd = math.sqrt(allowance / sxx) if sxx > 0 else None
+    best_theta = int(np.argmin(fit.sse_theta))
+    theta_sd = _width(fit.thetas, fit.sse_theta, best_theta, allowance) * ts
+    tau_s = tau_sd = None
+    if not integrating:
+        tau_s = fit.tau * ts
+        tau_sd = _width(fit.taus, fit.sse_tau, int(np.argmin(fit.sse_tau)), allowance) * ts
+    return ProcessModel(
+        kind="ipdt" if integrating else "fopdt",
+        K=fit.K,
+        tau_s=tau_s,
+        theta_s=fit.theta * ts,
+        K_sd=K_sd,
+        tau_sd=tau_sd,
+        theta_sd=theta_sd,
+        fit_percent=fit_pct,
+        source="set-point steps" if steps.size else "routine",
+    )
+
+
+def _residual_lag1(pv: FloatArray, x: FloatArray, K: float) -> float:
+    """Lag-1 autocorrelation of the fit's residual (clipped to 0-0.95): a correlated
+    residual has fewer independent samples than samples."""
+    n = pv.size
+    r = pv - K * x
+    a = np.column_stack([np.ones(n), np.arange(n, dtype=np.float64)])
+    coef, *_ = np.linalg.lstsq(a, r, rcond=None)
+    e = r - a @ coef
+    den = float(e @ e)
+    rho = float(e[1:] @ e[:-1]) / den if den > 0 else 0.0
+    return min(max(rho, 0.0), 0.95)

@@ -1,0 +1,159 @@
+"""The ``tuning`` part of a diagnosis (contracts §2, issue 48): for a loop diagnosed with
+aggressive or sluggish tuning, the identified process, the present controller, the proposed
+one in the control system's form, and what the change is predicted to do; for a sticky or
+faulty valve, why there is no proposal. Pure composition of ``identification``,
+``retuning`` and ``controller_forms``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from plantcheck.diagnosis.controller_forms import ControllerForm, in_dcs_form
+from plantcheck.diagnosis.identification import IdentificationParams, identify_process
+from plantcheck.diagnosis.retuning import PISetting, Prediction, Proposal, RetuneParams, propose
+from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.tuning import PIEstimate
+
+TUNING_CAUSES = frozenset({"aggressive_tuning", "sluggish_tuning"})
+VALVE_CAUSES = frozenset(
+    {"stiction", "deadband_backlash", "positioner_fault", "air_leakage", "actuator_undersized"}
+)
+PLOT_POINTS = 100
+"""Points of each predicted response in the JSON (the loop page's plot)."""
+
+
+@dataclass(frozen=True)
+class TuningSettings:
+    """What the retuning needs besides the window: the loop's controller form, the
+    identification's and the proposal's parameters."""
+
+    form: ControllerForm = field(default_factory=ControllerForm)
+    identification: IdentificationParams = field(default_factory=IdentificationParams)
+    retune: RetuneParams = field(default_factory=RetuneParams)
+
+
+@dataclass(frozen=True)
+class TuningOut:
+    """The JSON object and the words the action text gains (empty: none)."""
+
+    json: dict[str, Any]
+    action_text: str
+
+
+def valve_first(cause: str) -> TuningOut:
+    """No proposal while the valve misbehaves."""
+    return TuningOut(
+        {
+            "model": None,
+            "current": None,
+            "proposed": None,
+            "predicted": None,
+            "dcs": None,
+            "note": f"no tuning proposal: the valve is at fault ({cause}); fix the valve "
+            "first, a controller retuned around it only moves the cycle",
+        },
+        "",
+    )
+
+
+def _plot(pred: Prediction) -> dict[str, list[float]]:
+    idx = np.linspace(0, pred.t_s.size - 1, PLOT_POINTS).round().astype(np.int64)
+    return {
+        "t_s": [float(f"{v:.4g}") for v in pred.t_s[idx]],
+        "sp": [round(float(v), 4) for v in pred.pv_sp[idx]],
+        "load": [round(float(v), 4) for v in pred.pv_load[idx]],
+    }
+
+
+def _predicted(prop: Proposal) -> dict[str, Any] | None:
+    new, cur = prop.proposed_prediction, prop.current_prediction
+    if new is None:
+        return None
+    rob = new.robustness
+    out: dict[str, Any] = {
+        "iae_ratio": None if prop.iae_ratio is None else round(prop.iae_ratio, 2),
+        "gain_margin": round(rob.gain_margin, 2) if np.isfinite(rob.gain_margin) else None,
+        "phase_margin_deg": round(rob.phase_margin_deg, 1),
+        "ms": round(rob.ms, 2),
+        "proposed_response": _plot(new),
+    }
+    if cur is not None:
+        crob = cur.robustness
+        out["current"] = {
+            "gain_margin": round(crob.gain_margin, 2) if np.isfinite(crob.gain_margin) else None,
+            "phase_margin_deg": round(crob.phase_margin_deg, 1),
+            "ms": round(crob.ms, 2),
+        }
+        if np.isfinite(cur.iae):
+            out["current_response"] = _plot(cur)
+    return out
+
+
+def tuning_for(
+    cause: str,
+    pv: FloatArray,
+    op: FloatArray,
+    ts: float,
+    loop_type: str,
+    sp_steps: NDArray[np.int64],
+    auto_share: float | None,
+    pi: PIEstimate | None,
+    settings: TuningSettings | None = None,
+) -> TuningOut | None:
+    """The ``tuning`` object for a diagnosis of ``cause`` (None: the cause is not about the
+    tuning or the valve)."""
+    if cause in VALVE_CAUSES:
+        return valve_first(cause)
+    if cause not in TUNING_CAUSES:
+        return None
+    s = settings or TuningSettings()
+    model = identify_process(
+        pv, op, ts, integrating=loop_type == "level", sp_steps=sp_steps,
+        auto_share=auto_share, params=s.identification,
+    )  # fmt: skip
+    current = PISetting(pi.kc, pi.ti_s) if pi is not None and pi.ti_s else None
+    prop = propose(model, current, ts, loop_type, s.retune)
+    dcs = None
+    note = prop.note
+    if prop.proposed is not None:
+        try:
+            setting = in_dcs_form(prop.proposed.Kc, prop.proposed.Ti_s, prop.proposed.Td_s, s.form)
+            dcs = setting.to_json()
+            note = "; ".join(x for x in (note, setting.note) if x)
+        except ValueError as exc:
+            note = "; ".join(x for x in (note, str(exc)) if x)
+    out = {
+        "model": model.to_json() if model.kind is not None else None,
+        "current": current.to_json() if current is not None else None,
+        "proposed": prop.proposed.to_json() if prop.proposed is not None else None,
+        "alternative": prop.alternative.to_json() if prop.alternative is not None else None,
+        "predicted": _predicted(prop),
+        "dcs": dcs,
+        "note": note or None,
+    }
+    return TuningOut(out, _action_words(prop, dcs, s.form))
+
+
+def _action_words(prop: Proposal, dcs: dict[str, Any] | None, form: ControllerForm) -> str:
+    """' Proposed (SIMC): gain 1.2, Ti 45 s, reverse acting (ideal form); error integral
+    0.45 times the present one's, gain margin 3.0.' or why there is none."""
+    if prop.proposed is None:
+        return f" No setting proposed: {prop.note}." if prop.note else ""
+    if dcs is None:
+        p = prop.proposed
+        setting = f"Kc {p.Kc:.3g} % OP per PV unit, Ti {p.Ti_s:.3g} s (ideal form)"
+    else:
+        setting = in_dcs_form(prop.proposed.Kc, prop.proposed.Ti_s, 0.0, form).text()
+    words = f" Proposed ({prop.proposed.method.upper()}): {setting}"
+    pred = prop.proposed_prediction
+    ratio = prop.iae_ratio
+    if ratio is not None:
+        words += f"; error integral {ratio:.2f} times the present one's"
+    if pred is not None and np.isfinite(pred.robustness.gain_margin):
+        words += f", gain margin {pred.robustness.gain_margin:.1f}"
+    return words + "."

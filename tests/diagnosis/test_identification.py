@@ -1,0 +1,145 @@
+"""Process identification and the retuning proposal on simulated loops whose truth is known
+(issue 48; ``simulator/tuning_cases.py``; the figures over many loops are
+``benchmarks/retuning_accuracy.py``'s)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plantcheck.diagnosis.identification import ProcessModel, identify_process
+from plantcheck.diagnosis.retuning import (
+    PISetting,
+    RetuneParams,
+    predict,
+    propose,
+    robustness,
+    simc,
+)
+from plantcheck.diagnosis.tuning import identify_pi
+from plantcheck.diagnosis.tuning_proposal import tuning_for
+from plantcheck.simulator.tuning_cases import TuningCase, tuning_case
+
+
+def _steps(case: TuningCase) -> np.ndarray:
+    return np.flatnonzero(np.diff(case.record.sp) != 0) + 1
+
+
+def _identify(case: TuningCase) -> ProcessModel:
+    r = case.record
+    return identify_process(
+        r.pv, r.op, case.ts, integrating=case.process.kind == "integrating",
+        sp_steps=_steps(case),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", range(100, 112))
+def test_set_point_steps_identify_the_process_within_20_percent(seed: int) -> None:
+    """Without loads every loop of these seeds (self-regulating and integrating) is found."""
+    case = tuning_case(seed, "good", loads=0.0)
+    m = _identify(case)
+    p = case.process
+    assert m.kind == ("ipdt" if p.kind == "integrating" else "fopdt"), m.reason
+    assert pytest.approx(p.K, rel=0.2) == m.K
+    assert m.theta_s == pytest.approx(case.effective_dead_time_s, abs=0.2 * max(p.theta_s, case.ts))
+    if p.kind == "fopdt":
+        assert m.tau_s == pytest.approx(p.tau_s, rel=0.2)
+    assert m.fit_percent is not None and m.fit_percent >= 70
+    assert m.K_sd is not None and m.theta_sd is not None and m.source == "set-point steps"
+
+
+def test_routine_data_without_excitation_say_why_instead_of_guessing() -> None:
+    case = tuning_case(101, "good", loads=0.3, sp_steps=False)
+    m = _identify(case)
+    assert m.kind is None and m.reason
+    flat = identify_process(
+        np.random.default_rng(0).normal(50, 0.1, 2000), np.full(2000, 40.0), 1.0
+    )
+    assert flat.kind is None and "nothing excites the process" in flat.reason
+    manual = identify_process(case.record.pv, case.record.op, case.ts, auto_share=0.2)
+    assert manual.kind is None and "manual for 80 %" in manual.reason
+
+
+def test_simc_on_the_true_model_has_the_textbook_margins() -> None:
+    """SIMC with τc = θ on a first order plus dead time: gain margin about 3, Ms about 1.6
+    (Skogestad 2003, table 2), here with half a sample for the hold."""
+    model = ProcessModel(kind="fopdt", K=2.0, tau_s=50.0, theta_s=10.0)
+    s = simc(model, 1.0, "temperature", RetuneParams())
+    assert s.Kc == pytest.approx(50.0 / (2.0 * 20.0)) and s.Ti_s == pytest.approx(50.0)
+    rob = robustness(model, s, 1.0)
+    assert 2.6 < rob.gain_margin < 3.2 and 1.5 < rob.ms < 1.8 and 55 < rob.phase_margin_deg < 70
+    level = simc(ProcessModel(kind="ipdt", K=0.01, theta_s=5.0), 1.0, "level", RetuneParams())
+    assert level.tau_c_s == pytest.approx(15.0) and level.Ti_s == pytest.approx(80.0)
+
+
+@pytest.mark.parametrize(("tuning", "seed"), [("aggressive", 11001), ("sluggish", 11003)])
+def test_a_proposal_makes_the_true_loop_robust_and_better(tuning: str, seed: int) -> None:
+    case = tuning_case(seed, tuning, loads=0.3)  # type: ignore[arg-type]
+    r = case.record
+    pi = identify_pi(r.op, r.pv, r.sp, case.ts)
+    level = case.process.kind == "integrating"
+    out = tuning_for(
+        f"{tuning}_tuning", r.pv, r.op, case.ts, "level" if level else "flow", _steps(case),
+        None, pi,
+    )  # fmt: skip
+    assert out is not None and out.json["proposed"] is not None, out and out.json["note"]
+    prop = out.json["proposed"]
+    truth = ProcessModel(
+        kind="ipdt" if level else "fopdt", K=case.process.K,
+        tau_s=None if level else case.process.tau_s, theta_s=case.effective_dead_time_s,
+    )  # fmt: skip
+    new = PISetting(prop["Kc"], prop["Ti_s"])
+    present = PISetting(case.controller.Kc, case.controller.Ti_s)
+    p = RetuneParams()
+    assert robustness(truth, new, case.ts).gain_margin >= 1.7
+    assert predict(truth, new, case.ts, p).iae <= 0.7 * predict(truth, present, case.ts, p).iae
+    assert out.json["dcs"]["action"] == ("reverse" if case.process.K > 0 else "direct")
+    pred = out.json["predicted"]
+    assert pred["gain_margin"] >= 1.7 and len(pred["proposed_response"]["sp"]) == 100
+    assert " Proposed (SIMC): " in out.action_text and "gain margin" in out.action_text
+
+
+def test_a_well_tuned_loop_keeps_its_tuning() -> None:
+    model = ProcessModel(kind="fopdt", K=1.0, tau_s=20.0, theta_s=4.0, K_sd=0.01)
+    good = simc(model, 1.0, "flow", RetuneParams(caution_sd=0.0))
+    prop = propose(model, good, 1.0, "flow")
+    assert prop.proposed is None and "keep it" in prop.note
+
+
+def test_a_gain_that_contradicts_the_controller_is_no_model_of_the_process() -> None:
+    """Closed-loop data with nothing from outside read the controller's inverse, -1/C."""
+    model = ProcessModel(kind="fopdt", K=-1.0, tau_s=20.0, theta_s=4.0)
+    prop = propose(model, PISetting(2.0, 10.0), 1.0)
+    assert prop.proposed is None and "contradicts the controller" in prop.note
+
+
+def test_no_proposal_around_a_sticky_valve() -> None:
+    out = tuning_for(
+        "stiction", np.zeros(10), np.zeros(10), 1.0, "flow", np.zeros(0, int), None, None
+    )
+    assert out is not None and out.json["proposed"] is None
+    assert "fix the valve first" in out.json["note"]
+    assert tuning_for("external_disturbance", np.zeros(10), np.zeros(10), 1.0, "flow",
+                      np.zeros(0, int), None, None) is None  # fmt: skip
+
+
+def test_the_chain_gives_a_sluggish_loop_a_setting_in_its_controller_form() -> None:
+    from plantcheck.diagnosis import ChainParams, diagnose
+    from plantcheck.diagnosis.controller_forms import ControllerForm
+    from plantcheck.diagnosis.tuning_proposal import TuningSettings
+
+    case = tuning_case(11001, "sluggish", loads=0.3)
+    r = case.record
+    form = ControllerForm(gain="proportional_band", integral="minutes", pv_span=100.0)
+    params = ChainParams(retuning=TuningSettings(form=form))
+    d = diagnose(r.pv, r.op, case.ts, sp=r.sp, loop_type="flow", params=params).to_dict()
+    assert d["cause"] == "sluggish_tuning"
+    t = d["tuning"]
+    assert t["model"]["type"] == "fopdt" and t["proposed"]["method"] == "simc"
+    assert t["current"]["Kc"] == pytest.approx(case.controller.Kc, rel=0.1)
+    # the ideal-form figures beside the converted ones the page shows
+    assert t["dcs"]["gain_unit"] == "% (proportional band)" and t["dcs"]["integral_unit"] == "min"
+    assert t["dcs"]["gain"] == pytest.approx(100.0 / abs(t["proposed"]["Kc"]), rel=0.01)
+    assert t["dcs"]["integral"] == pytest.approx(t["proposed"]["Ti_s"] / 60.0, rel=0.01)
+    text = d["actions"][0]["text"]
+    assert text.startswith("Retune the controller more aggressively") and "PB " in text, text
