@@ -8,14 +8,15 @@ set-point steps, or loads large against the noise. The model is fitted as an *ou
 model (its simulated output against the measured PV, never the one-step prediction an ARX fit
 uses, which a coloured load biases towards a fast, low-gain process):
 
-    PV(k) ≈ K·x_{τ,θ}(k) + c + g·k,
+    PV(k) ≈ K·x_{τ,θ}(k) + c_s + g_s·k,
 
 x_{τ,θ} being OP delayed by θ through a unit first-order lag of time constant τ (for an IPDT
-model its running integral), c the operating point and g a slow drift the loads leave. For
-each (τ, θ) the three linear parameters are a least-squares solution; (τ, θ) are searched on
-a coarse grid and then refined around the best (separable least squares, Golub & Pereyra
-2003). Where set-point steps are present only the stretches around them are fitted: there OP
-moves for the step and the loads matter least.
+model its running integral), c_s the operating point of stretch s and g_s a slow drift the
+loads leave in it. For each (τ, θ) the linear parameters are a least-squares solution; (τ, θ)
+are searched on a coarse grid of block means and then refined at full rate, θ to a quarter
+sample (separable least squares, Golub & Pereyra 2003). Where set-point steps are present
+only the stretches after them are fitted, about four open-loop settling times each: there
+OP moves for the step and the loads matter least.
 
 Each parameter has a standard deviation: K's from the regression's covariance, τ's and θ's
 from the width of the fit's valley (the values whose residual sum of squares is within one
@@ -49,7 +50,7 @@ class IdentificationParams:
     max_dead_time_samples: int = 600
     """... and at most this many samples."""
     time_constants: int = 16
-    """Time constants on the coarse grid, log-spaced from one sample to a third of the data."""
+    """Time constants on the coarse grid, log-spaced from 0.3 sample to a third of the data."""
     min_fit_percent: float = 70.0
     """A simulated-output fit below this is no model (the data do not show the process)."""
     min_excitation: float = 4.0
@@ -228,7 +229,11 @@ def _coarse(
     cseg = [slice(s.start // b, max(s.start // b + 1, s.stop // b)) for s in segments]
     cspan = sum(s.stop - s.start for s in cseg)
     max_d = int(min(p.max_dead_time_samples / b, max(1, p.max_dead_time_share * cspan)))
-    taus = np.array([0.0]) if integrating else np.geomspace(0.3, max(2.0, cspan / 3.0), 16)
+    taus = (
+        np.array([0.0])
+        if integrating
+        else np.geomspace(0.3, max(2.0, cspan / 3.0), p.time_constants)
+    )
     coarse_d = np.unique(np.round(np.linspace(0, max_d, min(max_d + 1, 32)))).astype(np.int64)
     pv_b, op_b = _block_means(pv, b), _block_means(op, b)
     sse, _ = _sse_grid(pv_b, _regressors(op_b, taus, integrating, ts * b), coarse_d, cseg)
@@ -262,15 +267,12 @@ def _search(
     for _ in range(ALTERNATIONS):
         # θ in quarter samples at τ1, then τ around τ1 at that θ
         x = _regressors(op, np.array([tau1]), integrating, ts)
-        shifted = np.concatenate([np.zeros((1, 1)), x[:, :-1]], axis=1)
-        xf = np.concatenate([(1.0 - f) * x + f * shifted for f in FRACTIONS])
+        xf = np.concatenate([_fractional(x, f) for f in FRACTIONS])
         sse_f, _ = _sse_grid(pv, xf, near_d, segments)  # (fraction, delay)
         f, j = np.unravel_index(int(np.argmin(sse_f)), sse_f.shape)
         frac, d2 = FRACTIONS[f], int(near_d[j])
         near_taus = np.array([0.0]) if integrating else tau1 * np.geomspace(0.85, 1.18, 7)
-        x = _regressors(op, near_taus, integrating, ts)
-        shifted = np.concatenate([np.zeros((x.shape[0], 1)), x[:, :-1]], axis=1)
-        xt = (1.0 - frac) * x + frac * shifted
+        xt = _fractional(_regressors(op, near_taus, integrating, ts), frac)
         sse_t, gain = _sse_grid(pv, xt, np.array([d2]), segments)
         k = int(np.argmin(sse_t[:, 0]))
         if integrating or near_taus[k] == tau1:
@@ -287,6 +289,12 @@ def _search(
         thetas=thetas,
         sse_theta=sse_f.ravel(),
     )
+
+
+def _fractional(x: NDArray[np.float64], frac: float) -> NDArray[np.float64]:
+    """Rows of ``x`` delayed by ``frac`` of a sample (linear interpolation)."""
+    shifted = np.concatenate([np.zeros((x.shape[0], 1)), x[:, :-1]], axis=1)
+    return np.asarray((1.0 - frac) * x + frac * shifted)
 
 
 def _delayed(x: FloatArray, d: int) -> FloatArray:
@@ -307,8 +315,8 @@ def identify_process(
 ) -> ProcessModel:
     """FOPDT (``integrating`` False) or IPDT model from OP (%) to PV over a window sampled
     every ``ts`` seconds; ``sp_steps`` the samples where the set point steps (the fit is then
-    confined to the stretches after them, about four open-loop settling times each, found by a first
-    fit from the first step on), ``auto_share`` the share of the window in automatic (None:
+    confined to the stretches after them, about four open-loop settling times each, as a
+    coarse first fit finds them), ``auto_share`` the share of the window in automatic (None:
     unknown)."""
     p = params or IdentificationParams()
     pv = np.asarray(pv, dtype=np.float64)
