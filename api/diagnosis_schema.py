@@ -180,6 +180,35 @@ class DcsJSON(_Part):
     note: str | None = None
 
 
+class OpLimitJSON(_Part):
+    """The output limit OP rests at and the share of the window it rests there."""
+
+    value: float
+    share: float
+
+
+class KpisJSON(_Part):
+    """The window's performance indices (contracts §2 ``kpis``, issue 49)."""
+
+    service_factor: float | None = Field(description="Share of the window in automatic.")
+    op_limit: OpLimitJSON | None = None
+    harris_index: float | None = Field(
+        description="Minimum variance over the error's variance (1 = minimum variance)."
+    )
+    dead_time_s: float | None = Field(description="The dead time the Harris index used, s.")
+    dead_time_source: str | None = None
+    harris_note: str | None = None
+    error_mean: float | None = Field(description="Mean of SP − PV, PV units.")
+    error_std: float | None = Field(description="Standard deviation of SP − PV, PV units.")
+    variability_ratio: float | None = Field(
+        description="The detrended error's σ over the loop's healthy baseline σ."
+    )
+    op_travel_per_day: float | None = Field(description="OP travel, % of travel per day.")
+    op_reversals_per_day: float | None = Field(description="OP reversals per day.")
+    mv_travel_per_day: float | None = None
+    mv_reversals_per_day: float | None = None
+
+
 class TuningJSON(_Part):
     """Identification and retuning (contracts §2 ``tuning``, issue 48)."""
 
@@ -214,6 +243,8 @@ class DiagnosisJSON(_Part):
     """Each cause's calibrated probability (the learned model, issue 46)."""
     evidence: list[EvidenceJSON] | None = None
     """The inputs that moved the decision most, largest contribution first."""
+    kpis: KpisJSON | None = None
+    """The window's performance indices (issue 49)."""
     tuning: TuningJSON | None = None
     """For a tuning cause: the identified process, the present and proposed controller and
     the prediction; for a valve cause: why there is no proposal (issue 48)."""

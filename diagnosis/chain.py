@@ -22,6 +22,7 @@ from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cau
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import evidence_vector, shape_evidence, window_evidence
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
+from plantcheck.diagnosis.kpis import KpiParams, dead_time_for, travel, window_kpis
 from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
 from plantcheck.diagnosis.oscillation import (
     SPECTRAL,
@@ -104,6 +105,10 @@ class ChainParams:
     decide_by: str = "rules"
     """``rules``: the chain's rules give the cause, the model its probability; ``learned``:
     the model's most probable cause is the verdict (``plantcheck diagnose --decision``)."""
+    kpis: KpiParams = field(default_factory=KpiParams)
+    dead_time_s: float | None = None
+    """The loop's dead time (s) as configured, for the Harris index; None: the one identified
+    in the window, if any."""
     retuning: TuningSettings = field(default_factory=TuningSettings)
     """Identification and retuning of a loop diagnosed with its tuning wrong (issue 48), and
     the form its controller takes the setting in."""
@@ -286,6 +291,17 @@ def _with_tuning(run: _Run) -> DiagnosisDraft:
         diag.tuning = out.json
         if out.action_text and diag.actions:
             diag.actions[0] = {**diag.actions[0], "text": diag.actions[0]["text"] + out.action_text}
+    win = run.win
+    dead_time, source = dead_time_for(run.p.dead_time_s, diag.tuning)
+    diag.kpis = window_kpis(
+        win.pv, win.op, win.sp, run.ts,
+        auto_share=win.indices.get("auto_fraction"),
+        op_limit=win.indices.get("op_limit"),
+        op_limit_share=float(win.indices.get("saturation_fraction") or 0.0),
+        dead_time_s=dead_time, dead_time_source=source,
+        baseline_sd=run.baseline.error_sd if run.baseline is not None else None,
+        params=run.p.kpis,
+    )  # fmt: skip
     return diag
 
 
@@ -1066,6 +1082,10 @@ def diagnose_advanced(
         std.notes.append("MV has too many gaps: valve not assessed, standard chain verdict kept")
         return std.freeze()
     mv_f, _ = fill_short_gaps(mv_arr, p.window.max_fill_gap)
+    stem = travel(mv_f, ts, p.kpis.deadband)
+    if stem is not None and std.kpis is not None:
+        std.kpis["mv_travel_per_day"] = round(stem.travel_per_day, 1)
+        std.kpis["mv_reversals_per_day"] = round(stem.reversals_per_day, 1)
     va = classify_valve(op_f, mv_f, ts, p.valve)
     std.valve = {"state": va.state if va.state != "data_quality" else "unknown", "kpis": va.kpis}
     std.notes.extend(va.reasons)

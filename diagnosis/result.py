@@ -268,6 +268,8 @@ class Diagnosis:
     evidence: tuple[Mapping[str, Any], ...] | None = None
     """The inputs that moved the decision most, ``{"name", "value", "contribution"}``,
     largest contribution first (contracts §2 optional field)."""
+    kpis: Mapping[str, Any] | None = None
+    """The window's performance indices (contracts §2 ``kpis``, ``diagnosis/kpis.py``)."""
     tuning: Mapping[str, Any] | None = None
     """The identified process, present and proposed controller and the prediction for a
     tuning cause; why there is no proposal for a valve cause (contracts §2 ``tuning``)."""
@@ -300,6 +302,7 @@ class Diagnosis:
                 else {}
             ),
             **({"evidence": json_safe(_plain(self.evidence))} if self.evidence is not None else {}),
+            **({"kpis": json_safe(_plain(self.kpis))} if self.kpis is not None else {}),
             **({"tuning": json_safe(_plain(self.tuning))} if self.tuning is not None else {}),
         }
 
@@ -356,6 +359,7 @@ class DiagnosisDraft:
     probabilities: dict[str, float] | None = None
     evidence: list[dict[str, Any]] | None = None
     tuning: dict[str, Any] | None = None
+    kpis: dict[str, Any] | None = None
 
     def freeze(self) -> Diagnosis:
         """The typed, frozen diagnosis of this draft."""
@@ -381,6 +385,7 @@ class DiagnosisDraft:
             probabilities=dict(self.probabilities) if self.probabilities is not None else None,
             evidence=tuple(self.evidence) if self.evidence is not None else None,
             tuning=self.tuning,
+            kpis=self.kpis,
         )
 
 

@@ -200,6 +200,17 @@ def diagnose_cmd(
             show_default=False,
         ),
     ] = None,
+    dead_time: Annotated[
+        float | None,
+        typer.Option(
+            "--dead-time",
+            min=0.0,
+            max=86_400.0,
+            help="The process dead time in seconds, for the Harris index (kpis); without it "
+            "the dead time a set-point step identifies, or none.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
     from plantcheck.diagnosis import ChainParams, baseline_from, diagnose_loop
@@ -211,7 +222,7 @@ def diagnose_cmd(
     sp = rec.signals["sp"][sl] if "sp" in rec.signals else None
     auto = rec.auto[sl] if rec.auto is not None else None
     mv = rec.signals["mv"][sl] if "mv" in rec.signals else None
-    params = ChainParams(decide_by=decision.value)
+    params = ChainParams(decide_by=decision.value, dead_time_s=dead_time)
     normal = None
     if baseline is not None:
         base = _load(baseline, sample_time, ("pv", "op"), max_samples)

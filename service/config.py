@@ -355,6 +355,9 @@ class LoopConfig(_Strict):
     description: str = ""
     stiction_limit: float = Field(2.0, gt=0, le=100)
     """S (% of valve travel) at which the valve is due for maintenance (stiction report)."""
+    dead_time_s: float | None = Field(None, ge=0, le=86_400)
+    """The process dead time (s), for the Harris index; None: identified where a window
+    shows it."""
     controller: ControllerConfig = ControllerConfig()
     """The controller's form, gain and integral units and action (the retuning's output)."""
 

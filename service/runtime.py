@@ -115,6 +115,7 @@ def schedules_of(cfg: Config) -> list[LoopSchedule]:
             lp.period_s or d.period_s,
             SIGNALS if lp.source in change_only else HELD,
             lp.stiction_limit,
+            lp.dead_time_s,
             tuple(lp.controller.model_dump().items()),
         )
         for lp in cfg.loop

@@ -92,6 +92,8 @@ class LoopSchedule:
     report changes only; SP and mode otherwise)."""
     stiction_limit: float = 2.0
     """The valve's S limit, % of travel (its trend's projection)."""
+    dead_time_s: float | None = None
+    """The configured process dead time (s), for the Harris index."""
     controller: tuple[tuple[str, object], ...] = ()
     """The controller's form (``ControllerConfig`` items): the retuning's output form."""
 
@@ -332,6 +334,7 @@ class DiagnosisScheduler:
                 quantify,
                 baseline,
                 dict(sched.controller),
+                sched.dead_time_s,
             )
         if quantify:
             self._schedule_quantification(st, payload, sched.period_s)

@@ -36,6 +36,7 @@ def diagnose_window(
     quantify: bool = True,
     baseline: tuple[float, str] | None = None,
     controller: dict[str, Any] | None = None,
+    dead_time_s: float | None = None,
 ) -> dict[str, Any]:
     """The diagnosis (contracts §2 JSON object) of one aligned window.
 
@@ -44,7 +45,8 @@ def diagnose_window(
     (the advanced one when MV was stored for at least half the window).
     ``quantify`` off skips the Hammerstein S/J estimate (methods §6.1), the costly part.
     ``baseline`` is the loop's healthy error σ (PV units) and its source, when known;
-    ``controller`` the loop's controller form (``ControllerForm`` fields) for the retuning.
+    ``controller`` the loop's controller form (``ControllerForm`` fields) for the retuning,
+    ``dead_time_s`` its configured dead time for the Harris index.
     """
     pv, op = values["pv"], values["op"]
     sp = values.get("sp")
@@ -60,8 +62,11 @@ def diagnose_window(
         auto=auto,
         loop_type=loop_type,
         quantify=quantify,
-        params=ChainParams(retuning=TuningSettings(form=ControllerForm(**controller)))
-        if controller
+        params=ChainParams(
+            retuning=TuningSettings(form=ControllerForm(**(controller or {}))),
+            dead_time_s=dead_time_s,
+        )
+        if controller or dead_time_s is not None
         else None,
         baseline=Baseline(baseline[0], source=baseline[1]) if baseline is not None else None,
     )

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 from helpers import RunCli
 
 from plantcheck.diagnosis.result import CAUSES
@@ -178,6 +179,14 @@ def test_diagnose_with_a_baseline(run_cli: RunCli, tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["cause"] == "performance_degraded" and out["indices"]["variability_ratio"] > 3
+    # issue 49: the same ratio among the indices; a given dead time gives the Harris index
+    assert out["kpis"]["variability_ratio"] == pytest.approx(
+        out["indices"]["variability_ratio"], rel=0.02
+    )
+    assert out["kpis"]["harris_index"] is None and "dead_time_s" in out["kpis"]["harris_note"]
+    timed = json.loads(run_cli(*args, "--dead-time", "5").stdout)["kpis"]
+    assert 0 < timed["harris_index"] <= 1 and timed["dead_time_source"] == "configured"
+    assert run_cli(*args, "--dead-time", "-1").returncode == 2
     assert any("normal.csv" in n for n in out["notes"])
     flat = tmp_path / "flat.csv"
     flat.write_text("t,pv,op\n" + "".join(f"{t},50,40\n" for t in range(200)))

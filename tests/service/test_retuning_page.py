@@ -1,9 +1,10 @@
-"""Issue 48 end to end: a sluggish loop's record imported into the store, the service's
+"""Issues 48 and 49 end to end: a sluggish loop's record imported into the store, the service's
 diagnosis carries the identified process and a setting in the loop's configured controller
 form, and the loop page shows it with the predicted responses (Chromium)."""
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 from datetime import timedelta
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+import pytest
 from helpers import free_port
 from servicehelpers import CLI, dump_dom, record_start, start_service, wait_diagnosed
 
@@ -57,6 +59,17 @@ def test_a_sluggish_loop_gets_its_setting_on_the_page(tmp_path: Path) -> None:
         assert t["dcs"]["gain_unit"] == "% (proportional band)"
         action = httpx.get(f"{svc.url}/api/v1/actions", timeout=10).json()[0]["action"]
         assert f"PB {t['dcs']['gain']:.3g} %" in action, action
+        # issue 49: the CLI and the service give the same indices for the same window
+        cli = subprocess.run(
+            [*CLI, "diagnose", str(record), "--loop-type", "flow", "--json"],
+            check=True, capture_output=True, text=True,
+        )  # fmt: skip
+        mine, stored = json.loads(cli.stdout)["kpis"], d["kpis"]
+        assert stored["dead_time_source"] == "identified" and stored["harris_index"] is not None
+        for key in ("error_mean", "error_std", "op_travel_per_day", "op_reversals_per_day",
+                    "harris_index", "dead_time_s", "service_factor"):  # fmt: skip
+            want = mine[key] if mine[key] is None else pytest.approx(mine[key], rel=0.02, abs=1e-3)
+            assert stored[key] == want, (key, mine, stored)
         dom = dump_dom(f"{svc.url}/loop/TIC9", tmp_path / "profile")
         for chart in ("retune-sp", "retune-load"):
             assert re.search(rf'id="{chart}"[^>]*data-rendered="true"', dom) or re.search(
