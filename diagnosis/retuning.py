@@ -8,7 +8,8 @@ From the identified process model (``identification.py``):
   and three times looser for level loops (averaging level control absorbs inflow changes on
   purpose; Shinskey 1996). The model is taken at its cautious edge (gain and dead time two
   standard deviations up, time constant two down), so an uncertain model gets a gentler
-  setting rather than a risky one.
+  setting rather than a risky one; the integral time keeps the nominal τ (a shorter one
+  would be the bolder setting).
 - **Lambda** tuning, the alternative (Dahlin 1968; the pulp-and-paper practice): Kc =
   τ/(K(λ + θ)), Ti = τ with λ = max(τ, 3θ) (for an integrator, Ti = 2λ + θ and
   Kc = Ti/(K'(λ + θ)²)).
@@ -195,7 +196,9 @@ def simc(model: ProcessModel, ts: float, loop_type: str, params: RetuneParams) -
     if model.kind == "ipdt":
         return PISetting(sign / (K * (tau_c + theta)), 4.0 * (tau_c + theta), 0.0, "simc", tau_c)
     kc = tau / (K * (tau_c + theta))
-    return PISetting(sign * kc, min(tau, 4.0 * (tau_c + theta)), 0.0, "simc", tau_c)
+    # the integral time from the nominal τ: a shorter one would be the bolder setting
+    ti = min(float(model.tau_s or tau), 4.0 * (tau_c + theta))
+    return PISetting(sign * kc, ti, 0.0, "simc", tau_c)
 
 
 def lambda_tuning(model: ProcessModel, ts: float, params: RetuneParams) -> PISetting:
@@ -207,7 +210,8 @@ def lambda_tuning(model: ProcessModel, ts: float, params: RetuneParams) -> PISet
         ti = 2.0 * lam + theta
         return PISetting(sign * ti / (K * (lam + theta) ** 2), ti, 0.0, "lambda", lam)
     lam = max(tau, 3.0 * theta, params.min_tau_c_samples * ts)
-    return PISetting(sign * tau / (K * (lam + theta)), tau, 0.0, "lambda", lam)
+    ti = float(model.tau_s or tau)
+    return PISetting(sign * tau / (K * (lam + theta)), ti, 0.0, "lambda", lam)
 
 
 @dataclass(frozen=True)

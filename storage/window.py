@@ -43,6 +43,34 @@ def median_spacing_s(ts_us: NDArray[np.int64]) -> float | None:
     return float(np.median(d)) / 1e6
 
 
+POLL_COVERAGE = 0.95
+"""Share of grid points a polled PV must fill for its grid (the diagnosis refuses a window
+with more than 5 % missing)."""
+
+
+def _filled(t: NDArray[np.int64], step_s: float) -> float:
+    """Share of grid points of ``step_s`` that the samples ``t`` (µs, sorted) fill, over the
+    holes of at most four steps (longer ones are outages, marked as such)."""
+    gaps = np.diff(np.unique(np.rint((t - t[0]) / (step_s * 1e6))))
+    gaps = gaps[gaps <= 4]
+    return 1.0 - float(np.sum(gaps - 1)) / float(np.sum(gaps)) if gaps.size else 1.0
+
+
+def polled_step_s(ts_us: NDArray[np.int64], median_s: float) -> float:
+    """The grid step of a polled PV: its median spacing where the samples fill that grid to
+    ``POLL_COVERAGE``; where polls fell behind and skipped device samples (spacings of one,
+    two, three device ticks), the smallest multiple of the tick (the 10th-percentile
+    spacing) they fill, so that late polls read as a coarser sampling instead of gaps."""
+    t = np.unique(ts_us)
+    if t.size < 10 or median_s <= 0 or _filled(t, median_s) >= POLL_COVERAGE:
+        return median_s
+    tick = float(np.percentile(np.diff(t), 10)) / 1e6
+    for k in (1, 2, 3, 4):
+        if tick > 0 and _filled(t, k * tick) >= POLL_COVERAGE:
+            return k * tick
+    return median_s
+
+
 def align(
     series: dict[str, tuple[NDArray[np.int64], FloatArray]],
     start_us: int,
@@ -53,7 +81,8 @@ def align(
 ) -> LoopWindow:
     """Put each signal's (timestamps µs, values) on a common grid over [start, end).
 
-    The grid step is ``sample_time_s`` or the median spacing of PV's timestamps. Each sample
+    The grid step is ``sample_time_s`` or the median spacing of PV's timestamps (for a polled
+    PV, one not in ``hold``, ``polled_step_s``'s coarser step where polls skipped). Each sample
     goes to its nearest grid point (the later sample wins a tie); grid points without a sample
     stay NaN, so gaps remain gaps, except for the ``hold`` signals (default SP, mode), which
     keep their last value (from ``before``, the last value stored before the window, at first)
@@ -64,6 +93,8 @@ def align(
     if ts is None:
         pv_t = series.get("pv", (np.empty(0, np.int64), np.empty(0)))[0]
         ts = median_spacing_s(pv_t) or 1.0
+        if "pv" not in hold:
+            ts = polled_step_s(pv_t, ts)
     step_us = max(1, round(ts * 1e6))
     n = max(0, (end_us - start_us + step_us - 1) // step_us)
     grid = start_us + step_us * np.arange(n, dtype=np.int64)

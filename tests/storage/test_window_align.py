@@ -74,3 +74,23 @@ def test_align_matches_placing_samples_one_by_one(seed: int) -> None:
     want = reference(series, n, before, hold)
     for sig in SIGNALS:
         np.testing.assert_array_equal(win.values[sig], np.array(want[sig]), err_msg=sig)
+
+
+def test_polls_that_fall_behind_read_as_a_coarser_sampling() -> None:
+    """Issue 47: a collector too loaded to poll a clock-stamped plant at every device sample
+    skips one in two or three; the window is then on coarser steps (three seconds here), not
+    half gaps (which read as data_quality). Regular polls, an outage and a source reporting
+    changes keep the median spacing."""
+    rng = np.random.default_rng(4)
+    n = 600
+    skipped = START_US + STEP_US * np.cumsum(rng.choice([1, 2, 3], n, p=[0.3, 0.5, 0.2]))
+    series = {s: (skipped, rng.normal(size=n)) for s in ("pv", "op")}
+    win = align(series, START_US, int(skipped[-1]) + STEP_US, None, {}, ("sp", "mode"))
+    assert win.sample_time_s == 3.0 and win.coverage > 0.95
+    # a source reporting changes keeps the median spacing (two seconds here)
+    assert align(series, START_US, int(skipped[-1]), None, {}, SIGNALS).sample_time_s == 2.0
+    regular = START_US + STEP_US * np.arange(n)
+    outage = np.concatenate([regular[:300], regular[300:] + 120 * STEP_US])
+    for t in (regular, outage):
+        s = {k: (t, rng.normal(size=t.size)) for k in ("pv", "op")}
+        assert align(s, START_US, int(t[-1]), None, {}, ("sp", "mode")).sample_time_s == 1.0
