@@ -29,10 +29,6 @@ from plantcheck.diagnosis.tuning_proposal import tuning_for
 from plantcheck.simulator.tuning_cases import TuningCase, tuning_case
 
 
-def _steps(case: TuningCase) -> np.ndarray:
-    return np.flatnonzero(np.diff(case.record.sp) != 0) + 1
-
-
 def _within(case: TuningCase, m: ProcessModel, tol: float = 0.2) -> bool:
     p = case.process
     theta = case.effective_dead_time_s
@@ -42,17 +38,6 @@ def _within(case: TuningCase, m: ProcessModel, tol: float = 0.2) -> bool:
         m.tau_s is not None and abs(m.tau_s / p.tau_s - 1.0) <= tol
     )
     return bool(ok_k and ok_th and ok_tau)
-
-
-def _truth(case: TuningCase) -> ProcessModel:
-    p = case.process
-    integ = p.kind == "integrating"
-    return ProcessModel(
-        kind="ipdt" if integ else "fopdt",
-        K=p.K,
-        tau_s=None if integ else p.tau_s,
-        theta_s=case.effective_dead_time_s,
-    )
 
 
 def identification(n: int, seed: int) -> None:
@@ -65,7 +50,7 @@ def identification(n: int, seed: int) -> None:
                 r = case.record
                 m = identify_process(
                     r.pv, r.op, case.ts, integrating=case.process.kind == "integrating",
-                    sp_steps=_steps(case),
+                    sp_steps=case.sp_steps,
                 )  # fmt: skip
                 none += m.kind is None
                 hits += m.kind is not None and _within(case, m)
@@ -85,12 +70,11 @@ def proposals(n: int, seed: int, loads: float) -> list[float]:
         for i in range(n):
             case = tuning_case(seed + 10_000 + i, tuning, loads)  # type: ignore[arg-type]
             r = case.record
-            integ = case.process.kind == "integrating"
             t0 = time.perf_counter()
             pi = identify_pi(r.op, r.pv, r.sp, case.ts)
             out = tuning_for(
                 f"{'sluggish' if tuning == 'good' else tuning}_tuning", r.pv, r.op, case.ts,
-                "level" if integ else "flow", _steps(case), None, pi,
+                case.loop_type, case.sp_steps, None, pi,
             )  # fmt: skip
             cost.append((time.perf_counter() - t0) * 1e3 * 3600 / r.pv.size)
             assert out is not None
@@ -99,7 +83,7 @@ def proposals(n: int, seed: int, loads: float) -> list[float]:
                 continue
             made += 1
             setting = PISetting(prop["Kc"], prop["Ti_s"])
-            truth = _truth(case)
+            truth = case.true_model()
             present = PISetting(case.controller.Kc, case.controller.Ti_s)
             robust += robustness(truth, setting, case.ts).gain_margin >= 1.7
             ratio = (

@@ -275,10 +275,13 @@ def _standard(
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")
     run = _Run(win, ts, loop_type, p, quantify, exclude_stiction, diag, baseline=baseline)
-    return _with_tuning(_run_chain(run))
+    run = _run_chain(run)
+    _with_tuning(run)
+    _with_kpis(run)
+    return run.diag
 
 
-def _with_tuning(run: _Run) -> DiagnosisDraft:
+def _with_tuning(run: _Run) -> None:
     """The retuning (issue 48) of a loop whose cause is its tuning, or why a valve at fault
     gets none; the action text gains the proposal."""
     diag = run.diag
@@ -291,7 +294,12 @@ def _with_tuning(run: _Run) -> DiagnosisDraft:
         diag.tuning = out.json
         if out.action_text and diag.actions:
             diag.actions[0] = {**diag.actions[0], "text": diag.actions[0]["text"] + out.action_text}
-    win = run.win
+
+
+def _with_kpis(run: _Run) -> None:
+    """The window's performance indices (issue 49), with the dead time the retuning
+    identified where none is configured."""
+    win, diag = run.win, run.diag
     dead_time, source = dead_time_for(run.p.dead_time_s, diag.tuning)
     diag.kpis = window_kpis(
         win.pv, win.op, win.sp, run.ts,
@@ -302,7 +310,6 @@ def _with_tuning(run: _Run) -> DiagnosisDraft:
         baseline_sd=run.baseline.error_sd if run.baseline is not None else None,
         params=run.p.kpis,
     )  # fmt: skip
-    return diag
 
 
 def _run_chain(run: _Run) -> _Run:

@@ -36,7 +36,12 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray, first_order_lags, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    block_means,
+    first_order_lags,
+    noise_sigma,
+)
 
 ModelKind = Literal["fopdt", "ipdt"]
 
@@ -204,11 +209,6 @@ FRACTIONS = (0.0, 0.25, 0.5, 0.75)
 whole number of samples, and rounding it is a 20 % error."""
 
 
-def _block_means(x: FloatArray, b: int) -> FloatArray:
-    m = x.size // b * b
-    return np.asarray(x[:m].reshape(-1, b).mean(axis=1), dtype=np.float64)
-
-
 COARSE_SAMPLES = 500
 """The coarse search runs on block means of about this many samples: it only has to find
 the valley, which the fine search at full rate then walks down."""
@@ -235,7 +235,7 @@ def _coarse(
         else np.geomspace(0.3, max(2.0, cspan / 3.0), p.time_constants)
     )
     coarse_d = np.unique(np.round(np.linspace(0, max_d, min(max_d + 1, 32)))).astype(np.int64)
-    pv_b, op_b = _block_means(pv, b), _block_means(op, b)
+    pv_b, op_b = block_means(pv, b), block_means(op, b)
     sse, _ = _sse_grid(pv_b, _regressors(op_b, taus, integrating, ts * b), coarse_d, cseg)
     i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
     d_step = int(np.max(np.diff(coarse_d))) if coarse_d.size > 1 else 1

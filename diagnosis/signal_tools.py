@@ -106,6 +106,13 @@ def noise_sigma(x: FloatArray) -> float:
     return float(_MAD_TO_SIGMA * median(np.abs(d2 - median(d2))) / np.sqrt(6.0))
 
 
+def block_means(x: FloatArray, block: int) -> FloatArray:
+    """Means of ``x`` over consecutive blocks of ``block`` samples (a tail shorter than a
+    block is dropped)."""
+    n = x.size // block * block
+    return np.asarray(x[:n].reshape(-1, block).mean(axis=1), dtype=np.float64)
+
+
 def moving_average(x: FloatArray, width: int) -> FloatArray:
     """Centred moving average over ``width`` samples (edges use the available samples)."""
     if width <= 1 or x.size == 0:

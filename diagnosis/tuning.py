@@ -15,7 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plantcheck.diagnosis.signal_tools import FloatArray, fft_acf, first_order_lag, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    block_means,
+    fft_acf,
+    first_order_lag,
+    noise_sigma,
+)
 
 
 @dataclass(frozen=True)
@@ -112,12 +118,9 @@ def identify_pi(
     pi = _identify_pi(op, pv, sp, ts)
     if pi.ti_s is not None or pi.fit >= BLOCK_FIT or op.size < 20 * block:
         return pi
-    n = op.size // block * block
-
-    def means(x: FloatArray) -> FloatArray:
-        return np.asarray(x[:n].reshape(-1, block).mean(axis=1), dtype=np.float64)
-
-    coarse = _identify_pi(means(op), means(pv), means(sp), ts * block)
+    coarse = _identify_pi(
+        block_means(op, block), block_means(pv, block), block_means(sp, block), ts * block
+    )
     return coarse if coarse.ti_s is not None else pi
 
 

@@ -13,16 +13,25 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.controller_forms import ControllerForm, in_dcs_form
+from plantcheck.diagnosis.controller_forms import ControllerForm, DcsSetting, in_dcs_form
 from plantcheck.diagnosis.identification import IdentificationParams, identify_process
-from plantcheck.diagnosis.retuning import PISetting, Prediction, Proposal, RetuneParams, propose
+from plantcheck.diagnosis.retuning import (
+    PISetting,
+    Prediction,
+    Proposal,
+    RetuneParams,
+    Robustness,
+    propose,
+)
 from plantcheck.diagnosis.signal_tools import FloatArray
 from plantcheck.diagnosis.tuning import PIEstimate
+from plantcheck.diagnosis.valve_kpis import VALVE_STATES
 
 TUNING_CAUSES = frozenset({"aggressive_tuning", "sluggish_tuning"})
-VALVE_CAUSES = frozenset(
-    {"stiction", "deadband_backlash", "positioner_fault", "air_leakage", "actuator_undersized"}
-)
+"""Causes that are the controller's: they get a proposal (and the scheduler does not let a
+window without tuning evidence clear them)."""
+VALVE_CAUSES = frozenset(VALVE_STATES) - {"ok"}
+"""Causes that are the valve's or its actuator's: no proposal until it is fixed."""
 PLOT_POINTS = 100
 """Points of each predicted response in the JSON (the loop page's plot)."""
 
@@ -70,25 +79,25 @@ def _plot(pred: Prediction) -> dict[str, list[float]]:
     }
 
 
+def _margins(rob: Robustness) -> dict[str, float | None]:
+    return {
+        "gain_margin": round(rob.gain_margin, 2) if np.isfinite(rob.gain_margin) else None,
+        "phase_margin_deg": round(rob.phase_margin_deg, 1),
+        "ms": round(rob.ms, 2),
+    }
+
+
 def _predicted(prop: Proposal) -> dict[str, Any] | None:
     new, cur = prop.proposed_prediction, prop.current_prediction
     if new is None:
         return None
-    rob = new.robustness
     out: dict[str, Any] = {
         "iae_ratio": None if prop.iae_ratio is None else round(prop.iae_ratio, 2),
-        "gain_margin": round(rob.gain_margin, 2) if np.isfinite(rob.gain_margin) else None,
-        "phase_margin_deg": round(rob.phase_margin_deg, 1),
-        "ms": round(rob.ms, 2),
+        **_margins(new.robustness),
         "proposed_response": _plot(new),
     }
     if cur is not None:
-        crob = cur.robustness
-        out["current"] = {
-            "gain_margin": round(crob.gain_margin, 2) if np.isfinite(crob.gain_margin) else None,
-            "phase_margin_deg": round(crob.phase_margin_deg, 1),
-            "ms": round(crob.ms, 2),
-        }
+        out["current"] = _margins(cur.robustness)
         if np.isfinite(cur.iae):
             out["current_response"] = _plot(cur)
     return out
@@ -118,12 +127,11 @@ def tuning_for(
     )  # fmt: skip
     current = PISetting(pi.kc, pi.ti_s) if pi is not None and pi.ti_s else None
     prop = propose(model, current, ts, loop_type, s.retune)
-    dcs = None
+    setting: DcsSetting | None = None
     note = prop.note
     if prop.proposed is not None:
         try:
             setting = in_dcs_form(prop.proposed.Kc, prop.proposed.Ti_s, prop.proposed.Td_s, s.form)
-            dcs = setting.to_json()
             note = "; ".join(x for x in (note, setting.note) if x)
         except ValueError as exc:
             note = "; ".join(x for x in (note, str(exc)) if x)
@@ -133,23 +141,24 @@ def tuning_for(
         "proposed": prop.proposed.to_json() if prop.proposed is not None else None,
         "alternative": prop.alternative.to_json() if prop.alternative is not None else None,
         "predicted": _predicted(prop),
-        "dcs": dcs,
+        "dcs": setting.to_json() if setting is not None else None,
         "note": note or None,
     }
-    return TuningOut(out, _action_words(prop, dcs, s.form))
+    return TuningOut(out, _action_words(prop, setting))
 
 
-def _action_words(prop: Proposal, dcs: dict[str, Any] | None, form: ControllerForm) -> str:
+def _action_words(prop: Proposal, setting: DcsSetting | None) -> str:
     """' Proposed (SIMC): gain 1.2, Ti 45 s, reverse acting (ideal form); error integral
     0.45 times the present one's, gain margin 3.0.' or why there is none."""
     if prop.proposed is None:
         return f" No setting proposed: {prop.note}." if prop.note else ""
-    if dcs is None:
-        p = prop.proposed
-        setting = f"Kc {p.Kc:.3g} % OP per PV unit, Ti {p.Ti_s:.3g} s (ideal form)"
-    else:
-        setting = in_dcs_form(prop.proposed.Kc, prop.proposed.Ti_s, 0.0, form).text()
-    words = f" Proposed ({prop.proposed.method.upper()}): {setting}"
+    p = prop.proposed
+    typed = (
+        setting.text()
+        if setting is not None
+        else f"Kc {p.Kc:.3g} % OP per PV unit, Ti {p.Ti_s:.3g} s (ideal form)"
+    )
+    words = f" Proposed ({p.method.upper()}): {typed}"
     pred = prop.proposed_prediction
     ratio = prop.iae_ratio
     if ratio is not None:

@@ -40,6 +40,7 @@ import numpy as np
 from apscheduler.schedulers.asyncio import AsyncIOScheduler
 
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
+from plantcheck.diagnosis.tuning_proposal import TUNING_CAUSES
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
 from plantcheck.service.worker_lifetime import die_with_parent
@@ -117,10 +118,6 @@ class LoopJobState:
     """The loop's healthy error σ and where it came from (``BASELINE_REFRESH_S``)."""
     baseline_due: float = -float("inf")
     """When (monotonic s) the baseline is next read from the store."""
-
-
-TUNING_CAUSES = frozenset({"sluggish_tuning", "aggressive_tuning"})
-"""Confirmed causes that a window without tuning evidence does not clear (``judges_tuning``)."""
 
 
 def judges_tuning(payload: dict[str, Any]) -> bool:

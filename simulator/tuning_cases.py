@@ -13,7 +13,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
+from plantcheck.diagnosis.identification import ProcessModel
 from plantcheck.simulator.cases import simc_pi_tc, ultimate_gain
 from plantcheck.simulator.loop import (
     Disturbance,
@@ -40,6 +42,26 @@ class TuningCase:
     def effective_dead_time_s(self) -> float:
         """The dead time the simulator applies: a whole number of samples."""
         return round(self.process.theta_s / self.ts) * self.ts
+
+    @property
+    def sp_steps(self) -> NDArray[np.int64]:
+        """The samples where the set point steps."""
+        return np.flatnonzero(np.diff(self.record.sp) != 0) + 1
+
+    @property
+    def loop_type(self) -> str:
+        """``level`` for an integrating process, else ``flow``."""
+        return "level" if self.process.kind == "integrating" else "flow"
+
+    def true_model(self) -> ProcessModel:
+        """The process as the identification would state it, with the dead time applied."""
+        integrating = self.process.kind == "integrating"
+        return ProcessModel(
+            kind="ipdt" if integrating else "fopdt",
+            K=self.process.K,
+            tau_s=None if integrating else self.process.tau_s,
+            theta_s=self.effective_dead_time_s,
+        )
 
 
 def tuning_case(

@@ -21,15 +21,11 @@ from plantcheck.diagnosis.tuning_proposal import tuning_for
 from plantcheck.simulator.tuning_cases import TuningCase, tuning_case
 
 
-def _steps(case: TuningCase) -> np.ndarray:
-    return np.flatnonzero(np.diff(case.record.sp) != 0) + 1
-
-
 def _identify(case: TuningCase) -> ProcessModel:
     r = case.record
     return identify_process(
         r.pv, r.op, case.ts, integrating=case.process.kind == "integrating",
-        sp_steps=_steps(case),
+        sp_steps=case.sp_steps,
     )  # fmt: skip
 
 
@@ -77,17 +73,12 @@ def test_a_proposal_makes_the_true_loop_robust_and_better(tuning: str, seed: int
     case = tuning_case(seed, tuning, loads=0.3)  # type: ignore[arg-type]
     r = case.record
     pi = identify_pi(r.op, r.pv, r.sp, case.ts)
-    level = case.process.kind == "integrating"
     out = tuning_for(
-        f"{tuning}_tuning", r.pv, r.op, case.ts, "level" if level else "flow", _steps(case),
-        None, pi,
-    )  # fmt: skip
+        f"{tuning}_tuning", r.pv, r.op, case.ts, case.loop_type, case.sp_steps, None, pi
+    )
     assert out is not None and out.json["proposed"] is not None, out and out.json["note"]
     prop = out.json["proposed"]
-    truth = ProcessModel(
-        kind="ipdt" if level else "fopdt", K=case.process.K,
-        tau_s=None if level else case.process.tau_s, theta_s=case.effective_dead_time_s,
-    )  # fmt: skip
+    truth = case.true_model()
     new = PISetting(prop["Kc"], prop["Ti_s"])
     present = PISetting(case.controller.Kc, case.controller.Ti_s)
     p = RetuneParams()
