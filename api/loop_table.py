@@ -115,6 +115,16 @@ class LoopTable:
             self._body = b"[" + b",".join(frag for _, frag in ordered) + b"]"
         self._at = now
 
+    async def close(self, timeout_s: float = 5.0) -> None:
+        """End a background refresh before the store it reads is closed (a refresh left
+        running would touch a closed connection from a finished event loop)."""
+        task, self._refresh = self._refresh, None
+        if task is None or task.done():
+            return
+        # on a time-out wait_for cancels it; its failure was logged by _refreshed
+        with contextlib.suppress(Exception):
+            await asyncio.wait_for(task, timeout_s)
+
     async def get(self, store: Store) -> tuple[list[dict[str, Any]], bytes]:
         """(rows, their JSON array), refreshed from the store when older than ``ttl_s``."""
         if self._at == -float("inf"):

@@ -65,9 +65,6 @@ class Drill:
     sim: subprocess.Popen[bytes] | None = None
     service: subprocess.Popen[bytes] | None = None
     started_at: float = 0.0
-    service_started_us: int = 0
-    """When the service was last started (µs since the epoch): its first sample of each
-    protocol after that measures what a connection costs on this machine now."""
     db_dir: Path | None = None
     """Where the database lives (default: ``folder``); the disk-fault tests use a small disk."""
     buffer_dir: Path | None = None
@@ -117,7 +114,6 @@ class Drill:
         self._wait_port(self.admin, self.sim)
 
     def start_service(self) -> None:
-        self.service_started_us = time.time_ns() // 1000
         with self.log.open("ab") as err:
             self.service = subprocess.Popen(
                 [*CLI, "run", "--config", str(self.config)], stdout=err, stderr=err

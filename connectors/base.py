@@ -76,6 +76,8 @@ class DeviceState:
     samples: int = 0
     up_since_us: int | None = None
     """When the device last came back (its first data after a failure or at start)."""
+    attempt_us: int | None = None
+    """When the current (or last) connection attempt began."""
 
 
 class DeviceConnector(ABC):
@@ -206,7 +208,12 @@ class DeviceConnector(ABC):
     def _recovered(self) -> None:
         if self.state.failing_since_us is not None:
             down = (now_us() - self.state.failing_since_us) / 1e6
-            log.warning("%s: back after %.1f s", self.name, down)
+            # what the successful attempt itself took tells a slow reconnection (a loaded
+            # machine, a server slow to open sessions) from a late one (the back-off clock)
+            took = (now_us() - (self.state.attempt_us or now_us())) / 1e6
+            log.warning(
+                "%s: back after %.1f s (this connection took %.1f s)", self.name, down, took
+            )
         self.state.failing_since_us = None
         self.state.connected = True
         self.state.up_since_us = now_us()
@@ -215,7 +222,13 @@ class DeviceConnector(ABC):
         """Connect, collect, reconnect with backoff, until ``stop()``. The device counts as
         back (logged once, back-off reset) at its first data, not at connect."""
         self._delay = self.backoff_initial_s
+        returned = False
         while not self._stop.is_set():
+            if returned:
+                # a server that has just come back may refuse its first sessions while it
+                # starts: try it again soon, not a back-off grown over its whole outage
+                self._delay = self.backoff_initial_s
+            self.state.attempt_us = now_us()
             try:
                 await self.connect()
                 await self.collect()
@@ -232,25 +245,26 @@ class DeviceConnector(ABC):
                 break
             wait = self._delay * random.uniform(0.8, 1.2)
             self._delay = min(self._delay * 2, self.backoff_max_s)
-            await self._back_off(wait)
+            returned = await self._back_off(wait)
 
-    async def _back_off(self, wait_s: float) -> None:
+    async def _back_off(self, wait_s: float) -> bool:
         """Wait ``wait_s`` before the next try, or less: until stopped, or until the endpoint,
-        seen not listening during this wait, listens again (the server is back)."""
+        seen not listening during this wait, listens again (the server is back: True)."""
         end = time.monotonic() + wait_s
         addr = self.endpoint()
         was_down = False
         while not self._stop.is_set():
             left = end - time.monotonic()
             if left <= 0:
-                return
+                return False
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._stop.wait(), min(left, PROBE_S))
             if addr is not None and not self._stop.is_set():
                 up = await listening(*addr)
                 if up and was_down:
-                    return
+                    return True
                 was_down = was_down or not up
+        return False
 
     def stop(self) -> None:
         self._stop.set()

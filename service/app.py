@@ -35,6 +35,7 @@ def build_app(
             yield
         finally:
             app.state.backend = None
+            await app.state.loop_table.close()
             await runtime.stop()
 
     return create_app(cfg.api, lifespan)
