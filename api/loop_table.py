@@ -11,7 +11,7 @@ import contextlib
 import json
 import logging
 import time
-from typing import Any
+from typing import Any, Literal
 
 from plantcheck.api.deps import iso
 from plantcheck.storage.results import LoopStatus, loop_statuses
@@ -35,7 +35,37 @@ def loop_json(s: LoopStatus) -> dict[str, Any]:
         "J": s.J,
         "S_method": s.S_method,
         "S_at": iso(s.S_at_us),
+        "priority": s.priority,
+        "criticality": s.criticality,
+        "area": s.area,
+        "unit": s.unit,
+        "kpis": s.kpis,
     }
+
+
+LoopSort = Literal["id", "priority"]
+"""The loop table's orders: by loop id, or the worst loops first."""
+
+
+def select_loops(
+    rows: list[dict[str, Any]],
+    *,
+    state: str | None = None,
+    cause: str | None = None,
+    loop_type: str | None = None,
+    area: str | None = None,
+    unit: str | None = None,
+    sort: LoopSort = "id",
+) -> list[dict[str, Any]]:
+    """The rows (``loop_json``, in id order) that pass every filter given, in ``sort`` order:
+    ``priority`` puts the highest priority first (ties by id). ``rows`` itself when nothing
+    is filtered or reordered."""
+    wanted = {"state": state, "cause": cause, "type": loop_type, "area": area, "unit": unit}
+    wanted = {k: v for k, v in wanted.items() if v is not None}
+    selected = [r for r in rows if all(r[k] == v for k, v in wanted.items())] if wanted else rows
+    if sort == "priority":
+        selected = sorted(selected, key=lambda r: -r["priority"])  # stable: ties stay by id
+    return selected
 
 
 class LoopTable:

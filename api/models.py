@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from plantcheck.api.diagnosis_schema import DiagnosisJSON
+from plantcheck.api.diagnosis_schema import DiagnosisJSON, KpisJSON
 from plantcheck.core.vocabulary import ActionCode, Cause, LoopType, State
 
 __all__ = ["State"]  # re-exported for the routes' filters
@@ -34,6 +34,19 @@ class LoopOut(BaseModel):
         None,
         description="When S and J were estimated (ISO 8601 UTC, the end of the window they "
         "came from): their age.",
+    )
+    priority: float = Field(
+        0.0,
+        description="How urgently the loop needs attention, 0-100: its state and how far its "
+        "indices are from healthy, weighed by its criticality (README, 'Priority').",
+    )
+    criticality: int | None = Field(
+        None, description="How much the loop matters, 1-5 (configuration; 3 when unset)."
+    )
+    area: str = Field("", description="The plant area (configuration).")
+    unit: str = Field("", description="The process unit (configuration).")
+    kpis: KpisJSON | None = Field(
+        None, description="The indices of the latest diagnosis (contracts §2 `kpis`)."
     )
 
 
@@ -206,3 +219,32 @@ class Health(BaseModel):
 class DiagnoseNow(BaseModel):
     loop: str
     cause: Cause
+
+
+class Counts(BaseModel):
+    """Loops counted by state and by cause."""
+
+    loops: int
+    by_state: dict[str, int]
+    by_cause: dict[str, int]
+
+
+class AreaCounts(BaseModel):
+    """One area's (or, with area "", the plant's) counts now and then, and what changed."""
+
+    area: str = Field(description='The plant area ("" for the whole plant).')
+    now: Counts
+    then: Counts = Field(
+        description="Each loop's latest diagnosis at that time (unknown if none yet)."
+    )
+    change_by_state: dict[str, int] = Field(description="Now − then, per state that changed.")
+    change_by_cause: dict[str, int] = Field(description="Now − then, per cause that changed.")
+
+
+class PlantSummaryOut(BaseModel):
+    """The plant at a glance (`GET /plant/summary`)."""
+
+    at: str = Field(description="Now (ISO 8601 UTC).")
+    then: str = Field(description="The time compared with (ISO 8601 UTC).")
+    plant: AreaCounts
+    areas: list[AreaCounts]

@@ -23,7 +23,7 @@ from plantcheck.api.deps import (
     require_read_key,
     require_write_key,
 )
-from plantcheck.api.loop_table import LoopTable, loop_json
+from plantcheck.api.loop_table import LoopSort, LoopTable, loop_json, select_loops
 from plantcheck.api.models import (
     ActionOut,
     DiagnoseNow,
@@ -86,23 +86,22 @@ async def list_loops(
         LoopType | None,
         Query(alias="type", description="Only loops of this type."),
     ] = None,
+    area: Annotated[str | None, Query(description="Only loops of this plant area.")] = None,
+    unit: Annotated[str | None, Query(description="Only loops of this process unit.")] = None,
+    sort: Annotated[
+        LoopSort,
+        Query(description="`id` (default) or `priority`: the worst loops first."),
+    ] = "id",
     limit: Annotated[int, Query(ge=1, le=100_000, description="Most loops returned.")] = 10_000,
     offset: Offset = 0,
 ) -> Response:
-    """The loop-health table: every loop, its state, cause, since when, latest S and J
-    (at most one second old)."""
+    """The loop-health table: every loop, its state, cause, since when, latest S and J, its
+    priority and indices (at most one second old)."""
     table: LoopTable = request.app.state.loop_table
     rows, body = await table.get(backend.store)
-    if state is None and cause is None and loop_type is None:
-        selected = rows
-    else:
-        selected = [
-            r
-            for r in rows
-            if (state is None or r["state"] == state)
-            and (cause is None or r["cause"] == cause)
-            and (loop_type is None or r["type"] == loop_type)
-        ]
+    selected = select_loops(
+        rows, state=state, cause=cause, loop_type=loop_type, area=area, unit=unit, sort=sort
+    )
     if selected is not rows or offset > 0 or limit < len(rows):
         body = json.dumps(selected[offset : offset + limit], separators=(",", ":")).encode()
     response = Response(body, media_type="application/json")

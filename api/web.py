@@ -12,13 +12,14 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, Depends, Request
+from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
 from jinja2 import pass_context
 
 from plantcheck import __version__
 from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
+from plantcheck.api.loop_table import LoopSort, LoopTable, select_loops
 from plantcheck.api.reports import build_report
 from plantcheck.storage.results import active_actions, diagnosis_history, loop_statuses
 from plantcheck.storage.window import HELD
@@ -79,14 +80,47 @@ def _series(x: np.ndarray) -> list[float | None]:
 
 
 @router.get("/", response_class=HTMLResponse)
-async def health_page(request: Request, backend: Backend) -> HTMLResponse:
-    """The loop-health table, sortable, coloured by state."""
-    loops = await loop_statuses(backend.store)
+async def health_page(
+    request: Request,
+    backend: Backend,
+    state: str = "",
+    cause: str = "",
+    loop_type: Annotated[str, Query(alias="type")] = "",
+    area: str = "",
+    sort: LoopSort = "priority",
+) -> HTMLResponse:
+    """The loop-health table, the worst loops first, filtered as ``GET /api/v1/loops``
+    filters (an empty filter: all), sortable by any column in the browser."""
+    table: LoopTable = request.app.state.loop_table
+    rows, _ = await table.get(backend.store)
+    loops = select_loops(
+        rows,
+        state=state or None,
+        cause=cause or None,
+        loop_type=loop_type or None,
+        area=area or None,
+        sort=sort,
+    )
     counts: dict[str, int] = {}
     for lp in loops:
-        counts[lp.state] = counts.get(lp.state, 0) + 1
+        counts[lp["state"]] = counts.get(lp["state"], 0) + 1
+    choices = {
+        key: sorted({str(r[key]) for r in rows if r[key]})
+        for key in ("state", "cause", "type", "area")
+    }
+    chosen = {"state": state, "cause": cause, "type": loop_type, "area": area, "sort": sort}
     return _page(
-        request, backend, "index.html", {"loops": loops, "counts": counts, "title": "Loop health"}
+        request,
+        backend,
+        "index.html",
+        {
+            "loops": loops,
+            "total": len(rows),
+            "counts": counts,
+            "choices": choices,
+            "chosen": chosen,
+            "title": "Loop health",
+        },
     )
 
 

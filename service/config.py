@@ -360,6 +360,12 @@ class LoopConfig(_Strict):
     shows it."""
     controller: ControllerConfig = ControllerConfig()
     """The controller's form, gain and integral units and action (the retuning's output)."""
+    criticality: int | None = Field(None, ge=1, le=5)
+    """How much the loop matters, 1 (little) to 5 (most): weighs its priority (3 if unset)."""
+    area: str = Field("", max_length=64)
+    """The plant area the loop belongs to (filters and the plant summary)."""
+    unit: str = Field("", max_length=64)
+    """The process unit within the area."""
 
     def tags(self) -> dict[str, str]:
         """Signal → tag address, for the signals this loop has."""

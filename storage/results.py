@@ -15,6 +15,7 @@ from sqlalchemy import bindparam, func, insert, select, update
 from sqlalchemy.ext.asyncio import AsyncConnection
 from sqlalchemy.sql.elements import ColumnElement
 
+from plantcheck.diagnosis.priority import loop_priority
 from plantcheck.storage.schema import actions, diagnoses, loops, stiction_estimates
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.trends import (
@@ -67,6 +68,13 @@ class LoopStatus:
     S_method: str | None = None
     S_at_us: int | None = None
     """When S and J were estimated (µs UTC, the end of the window they came from)."""
+    area: str = ""
+    unit: str = ""
+    criticality: int | None = None
+    kpis: dict[str, Any] | None = None
+    """The indices of the latest diagnosis (contracts §2 ``kpis``)."""
+    priority: float = 0.0
+    """How urgently the loop needs attention, 0-100 (``diagnosis.priority``)."""
 
 
 QUANTIFIED_CAUSES = frozenset({"stiction", "deadband_backlash"})
@@ -131,8 +139,11 @@ async def record_verdicts(store: Store, batch: Sequence[PendingVerdict]) -> list
             await conn.execute(
                 update(loops)
                 .where(loops.c.id == bindparam("b_id"))
-                .values(last_diagnosis_us=bindparam("b_at")),
-                [{"b_id": v.loop.id, "b_at": v.created_us} for v in same],
+                .values(last_diagnosis_us=bindparam("b_at"), kpis=bindparam("b_kpis")),
+                [
+                    {"b_id": v.loop.id, "b_at": v.created_us, "b_kpis": v.payload.get("kpis")}
+                    for v in same
+                ],
             )
             # same verdict: keep the action and its ``since``, refresh its text when it brings
             # news (a new S); a window not quantified keeps the numbers the text already has,
@@ -187,11 +198,13 @@ async def _adopt(conn: AsyncConnection, batch: Sequence[PendingVerdict]) -> None
             state=bindparam("b_state"),
             cause=bindparam("b_cause"),
             since_us=bindparam("b_since"),
+            kpis=bindparam("b_kpis"),
         ),
         [
             {
                 "b_id": p.verdict.loop.id,
                 "b_at": p.verdict.created_us,
+                "b_kpis": p.verdict.payload.get("kpis"),
                 "b_state": p.verdict.state,
                 "b_cause": p.verdict.cause,
                 "b_since": p.since_us or p.verdict.created_us,
@@ -274,6 +287,11 @@ async def loop_statuses(
             r.since_us,
             r.last_diagnosis_us,
             *est.get(r.id, none),
+            area=r.area,
+            unit=r.unit,
+            criticality=r.criticality,
+            kpis=r.kpis,
+            priority=loop_priority(r.state, r.criticality, r.kpis),
         )
         for r in rows
     ]

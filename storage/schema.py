@@ -63,6 +63,12 @@ loops = Table(
     Column("cause", String(32), nullable=True),
     Column("since_us", BigInteger, nullable=True),
     Column("last_diagnosis_us", BigInteger, nullable=True),
+    # where the loop sits and how much it matters (configuration), and the indices of its
+    # latest diagnosis: what the table sorts and filters by (issue 49)
+    Column("area", String(64), nullable=False, default="", server_default=""),
+    Column("unit", String(64), nullable=False, default="", server_default=""),
+    Column("criticality", Integer, nullable=True),
+    Column("kpis", JSON, nullable=True),
 )
 
 tags = Table(

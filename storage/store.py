@@ -59,6 +59,12 @@ class LoopSettings(Protocol):
     def source(self) -> str: ...
     @property
     def description(self) -> str: ...
+    @property
+    def area(self) -> str: ...
+    @property
+    def unit(self) -> str: ...
+    @property
+    def criticality(self) -> int | None: ...
     def tags(self) -> dict[str, str]: ...
 
 
@@ -258,7 +264,10 @@ class Store:
                         .values(protocol=s.protocol, endpoint=endpoint)
                     )
             for lp in cfg.loop:
-                await self._upsert_loop(conn, lp.id, lp.type, lp.source, lp.description, lp.tags())
+                where = {"area": lp.area, "unit": lp.unit, "criticality": lp.criticality}
+                await self._upsert_loop(
+                    conn, lp.id, lp.type, lp.source, lp.description, lp.tags(), where=where
+                )
 
     async def ensure_loop(
         self, name: str, loop_type: str = "other", source: str = "", signals: Sequence[str] = ()
@@ -279,23 +288,19 @@ class Store:
         description: str,
         tag_map: dict[str, str],
         keep: bool = False,
+        where: dict[str, Any] | None = None,
     ) -> None:
+        """Create or update a loop and its tags; ``where`` holds its ``area``, ``unit`` and
+        ``criticality`` (configuration)."""
+        values = {"type": loop_type, "source": source, "description": description, **(where or {})}
         row = (await conn.execute(select(loops.c.id).where(loops.c.name == name))).first()
         if row is None:
-            res = await conn.execute(
-                insert(loops).values(
-                    name=name, type=loop_type, source=source, description=description
-                )
-            )
+            res = await conn.execute(insert(loops).values(name=name, **values))
             loop_id = int(res.inserted_primary_key[0])  # type: ignore[index]
         else:
             loop_id = int(row[0])
             if not keep:
-                await conn.execute(
-                    update(loops)
-                    .where(loops.c.id == loop_id)
-                    .values(type=loop_type, source=source, description=description)
-                )
+                await conn.execute(update(loops).where(loops.c.id == loop_id).values(**values))
         have = {
             r.signal: r
             for r in (await conn.execute(select(tags).where(tags.c.loop_id == loop_id))).all()

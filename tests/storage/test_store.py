@@ -197,3 +197,28 @@ def test_window_reads_recover_after_the_connection_is_lost(db_url: str) -> None:
             await store.close()
 
     asyncio.run(body())
+
+
+def test_migration_0007_gives_older_loops_their_area_and_indices(tmp_path: Path) -> None:
+    """A database of 0006 keeps its loops and gains area, unit, criticality and kpis."""
+    import sqlite3
+
+    from alembic import command
+
+    from plantcheck.storage.database import alembic_config, upgrade
+
+    path = tmp_path / "old.db"
+    url = f"sqlite+aiosqlite:///{path}"
+    upgrade(url)
+    command.downgrade(alembic_config(url), "0006")
+    con = sqlite3.connect(path)
+    assert "area" not in {r[1] for r in con.execute("PRAGMA table_info(loops)")}
+    con.execute("INSERT INTO loops (name, type, source, description, state) "
+                "VALUES ('FIC1', 'flow', 'plc', '', 'ok')")  # fmt: skip
+    con.commit()
+    con.close()
+    upgrade(url)
+    con = sqlite3.connect(path)
+    got = con.execute("SELECT name, area, unit, criticality, kpis FROM loops").fetchall()
+    con.close()
+    assert got == [("FIC1", "", "", None, None)]
