@@ -143,6 +143,13 @@ class ControllerJSON(_Part):
     tau_c_s: float | None = None
 
 
+class SensitivityJSON(_Part):
+    """|S(jω)| = |1/(1 + L(jω))| of the loop at ``w_rad_s`` (rad/s): its peak is Ms."""
+
+    w_rad_s: list[float]
+    mag: list[float]
+
+
 class ResponseJSON(_Part):
     """A predicted closed-loop response: PV after a unit set-point step (``sp``) and after a
     load step worth one PV unit (``load``), at times ``t_s``."""
@@ -164,6 +171,8 @@ class PredictionJSON(_Part):
     current: dict[str, float | None] | None = None
     proposed_response: ResponseJSON | None = None
     current_response: ResponseJSON | None = None
+    proposed_sensitivity: SensitivityJSON | None = None
+    current_sensitivity: SensitivityJSON | None = None
 
 
 class DcsJSON(_Part):

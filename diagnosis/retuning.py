@@ -137,6 +137,17 @@ def robustness(model: ProcessModel, c: PISetting, ts: float) -> Robustness:
     return Robustness(gm, pm, ms)
 
 
+def sensitivity(
+    model: ProcessModel, c: PISetting, ts: float, points: int = 60
+) -> tuple[np.ndarray, np.ndarray]:
+    """(ω in rad/s, |S(jω)|) of the loop, S = 1/(1 + L), log-spaced up to the Nyquist
+    frequency: the margins plot; its peak is Ms, and |S| > 1 where the loop amplifies a
+    disturbance instead of rejecting it (Åström & Hägglund 2006, section 4.4)."""
+    scale = float(model.tau_s or 0.0) + float(model.theta_s or 0.0) + c.Ti_s
+    w = np.geomspace(1e-2 / scale, math.pi / ts, points)
+    return w, np.abs(1.0 / (1.0 + _loop(model, c, w, ts)))
+
+
 def _respond(model: ProcessModel, c: PISetting, dt: float, steps: int, load: float) -> np.ndarray:
     """PV of the closed loop (model + controller, sampled every ``dt``) after a unit
     set-point step (``load`` 0) or a load step of ``load`` % of OP at the process input."""

@@ -14,7 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from plantcheck.diagnosis.controller_forms import ControllerForm, DcsSetting, in_dcs_form
-from plantcheck.diagnosis.identification import IdentificationParams, identify_process
+from plantcheck.diagnosis.identification import (
+    IdentificationParams,
+    ProcessModel,
+    identify_process,
+)
 from plantcheck.diagnosis.retuning import (
     PISetting,
     Prediction,
@@ -22,6 +26,7 @@ from plantcheck.diagnosis.retuning import (
     RetuneParams,
     Robustness,
     propose,
+    sensitivity,
 )
 from plantcheck.diagnosis.signal_tools import FloatArray
 from plantcheck.diagnosis.tuning import PIEstimate
@@ -87,19 +92,27 @@ def _margins(rob: Robustness) -> dict[str, float | None]:
     }
 
 
-def _predicted(prop: Proposal) -> dict[str, Any] | None:
+def _sensitivity(model: ProcessModel, c: PISetting, ts: float) -> dict[str, list[float]]:
+    w, mag = sensitivity(model, c, ts)
+    return {"w_rad_s": [float(f"{v:.4g}") for v in w], "mag": [round(float(v), 4) for v in mag]}
+
+
+def _predicted(prop: Proposal, model: ProcessModel, ts: float) -> dict[str, Any] | None:
     new, cur = prop.proposed_prediction, prop.current_prediction
-    if new is None:
+    if new is None or prop.proposed is None:
         return None
     out: dict[str, Any] = {
         "iae_ratio": None if prop.iae_ratio is None else round(prop.iae_ratio, 2),
         **_margins(new.robustness),
         "proposed_response": _plot(new),
+        "proposed_sensitivity": _sensitivity(model, prop.proposed, ts),
     }
     if cur is not None:
         out["current"] = _margins(cur.robustness)
         if np.isfinite(cur.iae):
             out["current_response"] = _plot(cur)
+        if prop.current is not None:
+            out["current_sensitivity"] = _sensitivity(model, prop.current, ts)
     return out
 
 
@@ -140,7 +153,7 @@ def tuning_for(
         "current": current.to_json() if current is not None else None,
         "proposed": prop.proposed.to_json() if prop.proposed is not None else None,
         "alternative": prop.alternative.to_json() if prop.alternative is not None else None,
-        "predicted": _predicted(prop),
+        "predicted": _predicted(prop, model, ts),
         "dcs": setting.to_json() if setting is not None else None,
         "note": note or None,
     }

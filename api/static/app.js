@@ -179,5 +179,32 @@ const plantcheck = (() => {
     return u;
   }
 
-  return { sortable, sortBy, autoRefresh, trends, pvop, stiction, retuning };
+  /* The margins plot (issue 48): |S(jω)| of the present and the proposed loop against
+     frequency, log-log; the peak is Ms, and the dashed line is the usual limit Ms = 2. */
+  function margins(el, pred) {
+    const prop = pred.proposed_sensitivity, cur = pred.current_sensitivity;
+    if (!el || !prop) return null;
+    const w = prop.w_rad_s;
+    const series = [{}, { label: "proposed |S|", stroke: "#2e7d32", width: 1.6 }];
+    const rows = [w, prop.mag];
+    if (cur) {
+      series.push({ label: "present |S|", stroke: "#c62828", width: 1.2 });
+      rows.push(w.map((x) => {  // the present loop's |S| read at the proposal's frequencies
+        const i = cur.w_rad_s.findIndex((v) => v >= x);
+        return i < 0 ? null : cur.mag[i];
+      }));
+    }
+    series.push({ label: "Ms = 2", stroke: "#757575", dash: [6, 4], width: 1 });
+    rows.push(w.map(() => 2));
+    const u = new uPlot({
+      title: "Sensitivity |S(jω)|: the peak is Ms, above 1 a disturbance is amplified",
+      width: width(el), height: 220,
+      scales: { x: { time: false, distr: 3 }, y: { distr: 3 } },
+      axes: [{ label: "ω (rad/s)" }, {}], series,
+    }, rows, el);
+    el.dataset.rendered = "true";
+    return u;
+  }
+
+  return { sortable, sortBy, autoRefresh, trends, pvop, stiction, retuning, margins };
 })();

@@ -14,6 +14,7 @@ from plantcheck.diagnosis.retuning import (
     predict,
     propose,
     robustness,
+    sensitivity,
     simc,
 )
 from plantcheck.diagnosis.tuning import identify_pi
@@ -66,6 +67,17 @@ def test_simc_on_the_true_model_has_the_textbook_margins() -> None:
     assert 2.6 < rob.gain_margin < 3.2 and 1.5 < rob.ms < 1.8 and 55 < rob.phase_margin_deg < 70
     level = simc(ProcessModel(kind="ipdt", K=0.01, theta_s=5.0), 1.0, "level", RetuneParams())
     assert level.tau_c_s == pytest.approx(15.0) and level.Ti_s == pytest.approx(80.0)
+
+
+def test_the_margins_plot_peaks_at_ms() -> None:
+    """|S(jω)| of the plot: small at low frequency (integral action), 1 towards Nyquist, and
+    its peak the Ms of the margins (within the plot's 60 points)."""
+    model = ProcessModel(kind="fopdt", K=2.0, tau_s=50.0, theta_s=10.0)
+    s = simc(model, 1.0, "temperature", RetuneParams())
+    w, mag = sensitivity(model, s, 1.0)
+    assert w.size == 60 and np.all(np.diff(w) > 0) and w[-1] == pytest.approx(np.pi)
+    assert mag[0] < 0.05 and mag[-1] == pytest.approx(1.0, abs=0.3)
+    assert mag.max() == pytest.approx(robustness(model, s, 1.0).ms, rel=0.05)
 
 
 @pytest.mark.parametrize(("tuning", "seed"), [("aggressive", 11001), ("sluggish", 11003)])

@@ -71,7 +71,7 @@ def test_a_sluggish_loop_gets_its_setting_on_the_page(tmp_path: Path) -> None:
             want = mine[key] if mine[key] is None else pytest.approx(mine[key], rel=0.02, abs=1e-3)
             assert stored[key] == want, (key, mine, stored)
         dom = dump_dom(f"{svc.url}/loop/TIC9", tmp_path / "profile")
-        for chart in ("retune-sp", "retune-load"):
+        for chart in ("retune-sp", "retune-load", "retune-margins"):
             assert re.search(rf'id="{chart}"[^>]*data-rendered="true"', dom) or re.search(
                 rf'data-rendered="true"[^>]*id="{chart}"', dom
             ), dom[:3000]
