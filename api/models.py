@@ -248,3 +248,19 @@ class PlantSummaryOut(BaseModel):
     then: str = Field(description="The time compared with (ISO 8601 UTC).")
     plant: AreaCounts
     areas: list[AreaCounts]
+
+
+class OscillationGroupOut(BaseModel):
+    """Loops oscillating together (`GET /plant/oscillations`)."""
+
+    period_s: float = Field(description="The common period, s (0.1 s).")
+    loops: list[str] = Field(description="The member loops' ids.")
+    source: str | None = Field(
+        description="The likely source loop (null: none of them makes the oscillation; look "
+        "upstream)."
+    )
+    evidence: list[str] = Field(description="Why that source, and each member's lag behind it.")
+    lags_s: dict[str, float] = Field(
+        {}, description="Each member's lag behind the source, s (modulo half a period)."
+    )
+    at: str = Field(description="When the plant-wide pass found it (ISO 8601 UTC).")

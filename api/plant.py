@@ -1,5 +1,7 @@
-"""``GET /api/v1/plant/summary``: the plant at a glance (issue 49 item 2), loops counted by
-state and by cause for the plant and per area, now and a week before, with the change."""
+"""The plant as a whole (issue 49): ``GET /api/v1/plant/summary``, loops counted by state and
+by cause for the plant and per area, now and a week before, with the change; and
+``GET /api/v1/plant/oscillations``, the groups of loops oscillating together with their likely
+source, as the plant-wide pass last stored them (``service/plant_oscillations.py``)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,8 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query
 
 from plantcheck.api.deps import Backend, iso_required, require_read_key
-from plantcheck.api.models import AreaCounts, Counts, PlantSummaryOut
+from plantcheck.api.models import AreaCounts, Counts, OscillationGroupOut, PlantSummaryOut
+from plantcheck.storage.plant_oscillations import latest_plant_oscillations
 from plantcheck.storage.plant_summary import AreaSummary, plant_summary
 from plantcheck.storage.plant_summary import Counts as StoredCounts
 
@@ -46,3 +49,14 @@ async def get_plant_summary(
         plant=_area(s.plant),
         areas=[_area(a) for a in s.areas],
     )
+
+
+@router.get("/plant/oscillations", response_model=list[OscillationGroupOut])
+async def get_plant_oscillations(backend: Backend) -> list[OscillationGroupOut]:
+    """Groups of loops oscillating at a common period (harmonics considered), each with its
+    likely source and the evidence; empty before the first plant-wide pass."""
+    latest = await latest_plant_oscillations(backend.store)
+    if latest is None:
+        return []
+    at_us, groups = latest
+    return [OscillationGroupOut(**g, at=iso_required(at_us)) for g in groups]

@@ -21,6 +21,8 @@ from plantcheck import __version__
 from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
 from plantcheck.api.loop_table import LoopSort, LoopTable, select_loops
 from plantcheck.api.reports import build_report
+from plantcheck.storage.plant_oscillations import latest_plant_oscillations
+from plantcheck.storage.plant_summary import plant_summary
 from plantcheck.storage.results import active_actions, diagnosis_history, loop_statuses
 from plantcheck.storage.window import HELD
 
@@ -161,6 +163,27 @@ async def loop_page(request: Request, backend: Backend, loop_id: str) -> HTMLRes
             "plot": plot,
             "clock_note": plant_clock_note(newest, time.time_ns() // 1000),
             "title": f"Loop {loop_id}",
+        },
+    )
+
+
+@router.get("/plant", response_class=HTMLResponse)
+async def plant_page(request: Request, backend: Backend) -> HTMLResponse:
+    """The plant at a glance: counts by state and cause per area against a week before, and
+    the loops oscillating together with their source."""
+    summary = await plant_summary(backend.store, time.time_ns() // 1000)
+    latest = await latest_plant_oscillations(backend.store)
+    at_us, groups = latest if latest is not None else (None, [])
+    return _page(
+        request,
+        backend,
+        "plant.html",
+        {
+            "summary": summary,
+            "groups": groups,
+            "groups_at_us": at_us,
+            "states": ["fault", "warning", "unknown", "ok"],
+            "title": "Plant",
         },
     )
 

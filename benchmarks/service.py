@@ -1,6 +1,6 @@
 """Service throughput and API latency.
 
-1. Diagnosis throughput: N loops (copies of the default plant's eight loops) with one hour of
+1. Diagnosis throughput: N loops (copies of the default plant's eleven loops) with one hour of
    1-s samples each in a SQLite store, as their OPC UA source reports them (a value when it
    changes: PV and OP every second, a constant SP or mode and a stuck valve's position only
    when they move; a Modbus source stores SP and mode alike and PV, OP, MV every poll;

@@ -4,7 +4,7 @@
    while a separate process reads the *whole* register map once per second with pymodbus
    (the load of a poller). The plant keeps up when its lag behind schedule does not grow
    (max lag over the last half < 0.5 s). Target: >= 2,000 loops.
-2. Speed-up: the default 8-loop scenario with both servers (Modbus and OPC UA, every step
+2. Speed-up: the default 11-loop scenario with both servers (Modbus and OPC UA, every step
    written to OPC UA) at increasing --speed; achieved = simulated s per wall s. Target >= 100x.
 
 Usage: python benchmarks/simulator_capacity.py [--loops 1000 2000 4000] [--seconds 20]
@@ -117,7 +117,7 @@ def main() -> None:
             f"  {r['map_reads']:9.0f}  {r['map_read_s']:12.3f}  {'yes' if ok else 'no'}"
         )
     print(f"largest loop count served at 1 Hz with no lag growth: {best} (target >= 2000)")
-    print("speed-up (default 8-loop scenario, Modbus + OPC UA, every step written to OPC UA)")
+    print("speed-up (default 11-loop scenario, Modbus + OPC UA, every step written to OPC UA)")
     reached = 0.0
     for s in args.speeds:
         got = speedup(s, 5.0)

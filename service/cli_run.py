@@ -264,7 +264,7 @@ def demo_cmd(
         float | None, typer.Option(help="Stop after this many seconds (default: at Ctrl-C).")
     ] = None,
 ) -> None:
-    """Demo: the bundled 8-loop plant simulated at high speed, ingested over OPC UA and
+    """Demo: the bundled 11-loop plant simulated at high speed, ingested over OPC UA and
     diagnosed by the service on SQLite; open http://127.0.0.1:PORT/ (every loop shows its
     cause within about a minute)."""
     from plantcheck.service.config import load_config

@@ -52,7 +52,7 @@ def _apply_overrides(
 def simulate_cmd(
     config: Annotated[
         Path | None,
-        typer.Option("--config", help="Scenario TOML (default: the bundled 8-loop plant)."),
+        typer.Option("--config", help="Scenario TOML (default: the bundled 11-loop plant)."),
     ] = None,
     modbus: Annotated[
         str | None, typer.Option(help="Modbus TCP HOST:PORT, or 'off' (default 127.0.0.1:5020).")

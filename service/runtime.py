@@ -22,6 +22,7 @@ from plantcheck.connectors.base import SourceHealth, now_us
 from plantcheck.service.config import Config
 from plantcheck.service.ingest import HEALTH_REPORT_S, Ingestion, down_past_grace
 from plantcheck.service.metrics import ServiceMetrics
+from plantcheck.service.plant_oscillations import PlantOscillationWatch
 from plantcheck.service.scheduler import DiagnosisScheduler, LoopSchedule
 from plantcheck.storage.leader_lock import LeaderLock
 from plantcheck.storage.results import loop_states
@@ -147,6 +148,8 @@ class Runtime:
     role: Role = "single"
     _lock: LeaderLock | None = None
     _lock_store: Store | None = None
+    plant_watch: PlantOscillationWatch | None = None
+    """The plant-wide oscillation pass (while scheduling)."""
     _watch: asyncio.Task[None] | None = None
     _reports: asyncio.Task[None] | None = None
     _remote: list[SourceHealth] = field(default_factory=list)
@@ -197,15 +200,27 @@ class Runtime:
             if self.schedule:
                 sched = make_scheduler(cfg, ing.store, metrics)
                 await sched.start()
+                d = cfg.scheduler
+                self.plant_watch = PlantOscillationWatch(
+                    ing.store, schedules_of(cfg), d.window_s, d.period_s
+                )
+                self.plant_watch.start()
             metrics.set_loop_states(await loop_states(ing.store))
         except BaseException:
+            await self._stop_plant_watch()
             if sched is not None:
                 await sched.stop()
             await ing.stop()
             raise
         self.ingestion, self.scheduler = ing, sched
 
+    async def _stop_plant_watch(self) -> None:
+        if self.plant_watch is not None:
+            await self.plant_watch.stop()
+            self.plant_watch = None
+
     async def _step_down(self) -> None:
+        await self._stop_plant_watch()
         if self.scheduler is not None:
             await self.scheduler.stop()
         if self.ingestion is not None:

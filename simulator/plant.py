@@ -10,6 +10,7 @@ how fast steps follow each other in wall-clock time.
 from __future__ import annotations
 
 import math
+from collections import deque
 from datetime import datetime, timedelta
 
 import numpy as np
@@ -33,6 +34,9 @@ class OnlineDisturbance:
         self.filtered = 0.0
         self.a = math.exp(-ts / spec.filtered_noise_tau_s)
         self.random_steps = 0.0
+        self.upstream: LiveLoop | None = None
+        """The loop whose cycle this disturbance carries (``from_loop``), set by the plant."""
+        self.carried: deque[float] = deque(maxlen=max(1, round(spec.delay_s / ts) + 1))
 
     def value(self, t: float) -> float:
         """Disturbance at simulated time ``t`` (s); call once per step, in order."""
@@ -53,6 +57,9 @@ class OnlineDisturbance:
         for t_step, size in d.steps:
             if t >= t_step:
                 out += size
+        if self.upstream is not None:
+            self.carried.append(self.upstream.deviation)
+            out += d.gain * self.carried[0]
         return out
 
 
@@ -67,6 +74,8 @@ class LiveLoop:
         self.disturbances = [OnlineDisturbance(d, ts, self.rng) for d in spec.disturbances]
         self.schedule = sorted(spec.sp_schedule)
         self.controller_schedule = sorted(spec.controller_schedule)
+        self.deviation = 0.0
+        """PV − SP after the latest step (% of span): what reaches the loops downstream."""
 
     def set_point(self, t: float) -> float:
         """Set point (% of span) at simulated time ``t`` from the schedule."""
@@ -95,6 +104,7 @@ class LiveLoop:
         self.loop.auto = auto
         sp = self.set_point(t)
         pv, op, mv = self.loop.step(sp, load, out_d, noise)
+        self.deviation = pv - sp
         if self.spec.mv_noise_std:
             mv += float(self.rng.normal(0.0, self.spec.mv_noise_std))
         mv_served = mv if self.spec.expose_mv else math.nan
@@ -117,6 +127,10 @@ class Plant:
             LiveLoop(spec, self.ts, int(s)) for spec, s in zip(scenario.loop, seeds, strict=True)
         ]
         self.index = {spec.id: i for i, spec in enumerate(scenario.loop)}
+        for live in self.loops:
+            for d in live.disturbances:
+                if d.spec.from_loop:
+                    d.upstream = self.loops[self.index[d.spec.from_loop]]
         self.start = start
         self.steps = 0
         self.values: NDArray[np.float64] = np.full((len(self.loops), len(SIGNALS)), np.nan)

@@ -2,7 +2,7 @@
 
 A scenario file (``sim.toml``) has the tables ``[clock]``, ``[modbus]``, ``[opcua]``,
 ``[admin]``, any number of ``[[loop]]`` and ``[[fault]]``; every key has a default except a
-loop's ``id``. ``DEFAULT_SCENARIO`` is the bundled eight-loop plant (README quick start,
+loop's ``id``. ``DEFAULT_SCENARIO`` is the bundled eleven-loop plant (README quick start,
 end-to-end tests). Units: PV and SP in % of span inside the model, served in engineering units
 through ``range``; OP and MV in % of travel; times in seconds.
 """
@@ -141,8 +141,10 @@ class DisturbanceSpec(_Strict):
     """A disturbance at the process input (``load``, % of travel) or output (% of span).
 
     Sine (amplitude, period), random walk (std per √s), first-order filtered noise (std, tau),
-    fixed steps ``[[time_s, size], ...]`` and random steps (one every ``step_every_s`` on
-    average, normal sizes with std ``step_std``).
+    fixed steps ``[[time_s, size], ...]``, random steps (one every ``step_every_s`` on
+    average, normal sizes with std ``step_std``) and another loop's cycle: ``from_loop``'s
+    PV deviation from its set point (% of its span) times ``gain``, ``delay_s`` later (a
+    plant-wide oscillation travelling downstream).
     """
 
     where: Literal["load", "output"] = "load"
@@ -154,6 +156,9 @@ class DisturbanceSpec(_Strict):
     steps: list[tuple[float, float]] = []
     step_every_s: float = Field(0.0, ge=0)
     step_std: float = Field(0.0, ge=0)
+    from_loop: str = ""
+    gain: float = 1.0
+    delay_s: float = Field(0.0, ge=0, le=3600)
 
 
 class LoopSpec(_Strict):
@@ -263,6 +268,13 @@ class Scenario(_Strict):
         for f in self.fault:
             if f.loop and f.loop not in seen:
                 raise ValueError(f"fault names loop {f.loop!r}, which is not in the scenario")
+        for spec in self.loop:
+            for d in spec.disturbances:
+                if d.from_loop and (d.from_loop not in seen or d.from_loop == spec.id):
+                    raise ValueError(
+                        f"loop {spec.id!r}: disturbance from_loop = {d.from_loop!r} must name "
+                        "another loop of the scenario"
+                    )
         return self
 
 

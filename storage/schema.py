@@ -169,3 +169,13 @@ actions = Table(
     Column("closed_us", BigInteger, nullable=True),
     Index("ix_actions_active", "active", "loop_id"),
 )
+
+plant_oscillations = Table(
+    "plant_oscillations",
+    metadata,
+    # each plant-wide pass (``service/plant_oscillations.py``): the groups of loops oscillating
+    # together and their sources, as the API serves them; the latest few are kept
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("at_us", BigInteger, nullable=False),
+    Column("groups", JSON, nullable=False),
+)

@@ -121,7 +121,7 @@ def pg_cluster() -> Iterator[PgCluster]:
 
 @pytest.fixture(scope="session")
 def service() -> Iterator[Service]:
-    """One running service over 1 h of the default plant (8 loops), every loop diagnosed."""
+    """One running service over 1 h of the default plant (11 loops), every loop diagnosed."""
     with tempfile.TemporaryDirectory(prefix="plantcheck-svc-") as d:
         folder = Path(d)
         port = free_port()

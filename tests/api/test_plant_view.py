@@ -1,13 +1,15 @@
 """The plant, worst first (issue 49 item 2): ``GET /loops`` sorts by priority and filters by
 state, cause, type, area and unit; the page's table does the same and shows the indices;
-``GET /plant/summary`` counts loops by state and cause, per area, now and a week before. The
-app over a real SQLite store, through its ASGI interface."""
+``GET /plant/summary`` counts loops by state and cause, per area, now and a week before; the
+plant page shows the summary and the latest plant-wide oscillation groups
+(``GET /plant/oscillations``). The app over a real SQLite store, through its ASGI interface."""
 
 from __future__ import annotations
 
 import asyncio
 import dataclasses
 import re
+import sqlite3
 import time
 from pathlib import Path
 from typing import Any
@@ -18,6 +20,7 @@ from helpers import verdict_of
 from plantcheck.service.app import build_app
 from plantcheck.service.config import Config
 from plantcheck.storage.database import upgrade
+from plantcheck.storage.plant_oscillations import KEEP, record_plant_oscillations
 from plantcheck.storage.results import record_verdict
 from plantcheck.storage.store import Store
 
@@ -30,6 +33,15 @@ LOOPS = [
     ("TIC1", "temperature", "south", None, "ok", "ok", {"variability_ratio": 1.0}),
     ("PIC1", "pressure", "", 4, None, "sluggish_tuning", {"service_factor": 0.5}),
 ]
+
+
+GROUP = {
+    "period_s": 152.0,
+    "loops": ["FIC1", "FIC2", "LIC1"],
+    "source": "FIC1",
+    "evidence": ["FIC1: its valve (cause stiction, S 2.00 %)", "LIC1 lags FIC1 by 12.0 s"],
+    "lags_s": {"FIC2": 3.0, "LIC1": 12.0},
+}
 
 
 def _config(tmp_path: Path) -> Config:
@@ -62,6 +74,9 @@ async def _fill(cfg: Config, now_us: int) -> None:
             await record_verdict(
                 store, dataclasses.replace(v, payload={"cause": cause, "kpis": kpis})
             )
+        for k in range(KEEP + 3):  # passes beyond the latest KEEP are dropped
+            await record_plant_oscillations(store, now_us - (KEEP + 3 - k) * 1000, [])
+        await record_plant_oscillations(store, now_us, [GROUP])
     finally:
         await store.close()
 
@@ -82,7 +97,19 @@ async def _get(cfg: Config, paths: list[str]) -> list[Any]:
 def test_worst_first_filters_and_the_plant_summary(tmp_path: Path) -> None:
     cfg = _config(tmp_path)
     asyncio.run(_fill(cfg, time.time_ns() // 1000))
-    by_id, worst, north, sticky, levels, unit, summary, page, page_south = asyncio.run(
+    (
+        by_id,
+        worst,
+        north,
+        sticky,
+        levels,
+        unit,
+        summary,
+        page,
+        page_south,
+        oscillations,
+        plant_page,
+    ) = asyncio.run(
         _get(
             cfg,
             [
@@ -95,9 +122,16 @@ def test_worst_first_filters_and_the_plant_summary(tmp_path: Path) -> None:
                 "/api/v1/plant/summary",
                 "/",
                 "/?area=south&sort=priority",
+                "/api/v1/plant/oscillations",
+                "/plant",
             ],
         )
     )
+    assert [{k: g[k] for k in GROUP} for g in oscillations] == [GROUP]
+    with sqlite3.connect(tmp_path / "store.db") as con:
+        assert con.execute("SELECT count(*) FROM plant_oscillations").fetchone()[0] == KEEP
+    assert re.findall(r'class="oscillation-group" data-source="(\w+)"', plant_page) == ["FIC1"]
+    assert "whole plant" in plant_page and 'data-area="north"' in plant_page
     assert [r["id"] for r in by_id] == sorted(r[0] for r in LOOPS)
     # stiction (fault) critical 5, then sluggish (warning) 4 half in manual, then the level
     # 5× its normal though ok, then the sticky valve of criticality 1, then the healthy loop

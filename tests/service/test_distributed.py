@@ -39,8 +39,8 @@ STALLED_AFTER_S = 4.0
 
 
 def _site_config(folder: Path, url: str, api_port: int, opcua_url: str) -> Path:
-    """One site configuration: the default plant's 8 loops as imported records (a source the
-    service reads, down), and the live simulator's 8 loops as EDGE-* read by collector edge1."""
+    """One site configuration: the default plant's 11 loops as imported records (a source the
+    service reads, down), and the live simulator's 11 loops as EDGE-* read by collector edge1."""
     base = write_config(folder, port=api_port).read_text()
     base = re.sub(r'url = "sqlite\+aiosqlite:///[^"]*"', f'url = "{url}"', base, count=1)
     base = base.replace(
@@ -130,7 +130,7 @@ def test_workers_standby_and_collector(pg_cluster: PgCluster, tmp_path: Path, pr
     port_a, port_b, opcua_port = free_port(), free_port(), free_port()
     opcua_url = f"opc.tcp://127.0.0.1:{opcua_port}/plantcheck/"
     site = _site_config(tmp_path, url, port_a, opcua_url)
-    fill_store(tmp_path, site)  # db upgrade + the 8 imported records
+    fill_store(tmp_path, site)  # db upgrade + the 11 imported records
     # the collector's machine has its own store-and-forward buffer
     edge_cfg = tmp_path / "edge.toml"
     edge_cfg.write_text(

@@ -207,7 +207,7 @@ def test_reads_need_the_key_when_configured(service: Service) -> None:
         assert httpx.get(f"{svc.url}/api/v1/loops", headers={"X-API-Key": ""}).status_code == 401
         assert httpx.get(f"{svc.url}/").status_code == 401
         r = httpx.get(f"{svc.url}/api/v1/loops", headers={"X-API-Key": API_KEY})
-        assert r.status_code == 200 and len(r.json()) == 8
+        assert r.status_code == 200 and len(r.json()) == 11
         assert httpx.get(f"{svc.url}/healthz").status_code == 200  # probes stay open
     finally:
         svc.stop()
@@ -268,11 +268,11 @@ def _storage_config(folder: Path, url: str, buffer: str | None = None) -> Path:
 def test_page_shows_the_health_table_sorted_and_coloured(service: Service, tmp_path: Path) -> None:
     dom = dump_dom(f"{service.url}/#sort=-S", tmp_path / "profile")
     rows = re.findall(r'<tr class="state-(\w+)" data-loop="(\w+)"', dom)
-    assert len(rows) == 8
+    assert len(rows) == 11
     by_loop = dict((name, state) for state, name in rows)
     assert by_loop["FIC102"] == "fault" and by_loop["FIC101"] == "ok"
     # sorted by S, largest first (by the page's script): the sticky valves lead
-    assert {rows[0][1], rows[1][1]} == {"FIC102", "LIC201"}
+    assert {rows[0][1], rows[1][1], rows[2][1]} == {"FIC102", "LIC201", "FIC801"}
     assert 'aria-sort="descending"' in dom
 
 

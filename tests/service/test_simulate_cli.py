@@ -25,7 +25,7 @@ def test_to_csv_writes_records_and_truth_that_diagnose_reads(
     assert r.returncode == 0, r.stderr
     assert "simulated 100 %" in r.stderr
     csvs = sorted(out.glob("*.csv"))
-    assert len(csvs) == 8
+    assert len(csvs) == 11
     truth = json.loads((out / "FIC102.json").read_text())
     assert truth["cause"] == "stiction" and truth["S"] == 3.0 and truth["J"] == 1.0
     header = (out / "FIC701.csv").read_text().splitlines()[0]

@@ -19,7 +19,7 @@ def test_scenario_case(case: Path) -> None:
     check_refusal(case / "scenario.toml", expected, lambda p: load_scenario(p).loop)
 
 
-def test_default_scenario_has_the_eight_demo_loops() -> None:
+def test_default_scenario_has_the_demo_loops() -> None:
     sc = load_scenario()
     causes = {spec.cause for spec in sc.loop}
     assert len(sc.loop) >= 8
@@ -27,3 +27,6 @@ def test_default_scenario_has_the_eight_demo_loops() -> None:
     assert {"external_disturbance", "saturation", "positioner_fault"} <= causes
     assert any(s.expose_mv and s.positioner for s in sc.loop)
     assert sum(s.type == "level" and s.cause == "stiction" for s in sc.loop) == 1
+    # a sticky valve whose cycle reaches two loops downstream (issue 49 item 3)
+    carried = [s.id for s in sc.loop for d in s.disturbances if d.from_loop == "FIC801"]
+    assert sorted(carried) == ["PIC803", "TIC802"]

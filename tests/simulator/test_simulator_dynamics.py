@@ -102,3 +102,29 @@ def test_engineering_units_and_set_point_schedule() -> None:
     )
     sps = _served(sc, 20)[:, 0]
     assert sps[0] == 200.0 and sps[5] == 220.0 and sps[10] == 200.0 and sps[15] == 220.0
+
+
+def test_a_loop_carries_another_loops_cycle_downstream() -> None:
+    """``from_loop``: B's load is A's PV deviation from its set point times ``gain``,
+    ``delay_s`` later; A is untouched by B (issue 49 item 3: a plant-wide oscillation)."""
+    sc = parse_scenario(
+        '[[loop]]\nid = "A"\nsp_schedule = [[10.0, 60.0]]\n'
+        'process = { kind = "fopdt", K = 1.0, tau_s = 5.0, theta_s = 1.0 }\n'
+        "controller = { Kc = 0.5, Ti_s = 5.0 }\n\n"
+        '[[loop]]\nid = "B"\ncontroller = { Kc = 0.01, Ti_s = 1000.0 }\n'
+        'process = { kind = "fopdt", K = 1.0, tau_s = 1.0, theta_s = 0.0 }\n'
+        'disturbances = [{ where = "load", from_loop = "A", gain = -2.0, delay_s = 3.0 }]\n'
+    )
+    plant = Plant(sc, START)
+    rows = []
+    for _ in range(40):
+        plant.step()
+        rows.append(plant.values.copy())
+    v = np.array(rows)
+    dev_a = v[:, 0, 1] - v[:, 0, 0]  # A's PV − SP, % (range 0-100)
+    assert dev_a[12] < -5.0  # the set-point step: A's PV trails its new set point
+    # B barely controls: its PV follows its load, −2 × A's deviation 3 s before, through a
+    # 1-s lag; before A moved, B sits at its set point
+    assert abs(v[11, 1, 1] - 50.0) < 0.5
+    load = -2.0 * dev_a
+    assert v[25, 1, 1] - 50.0 == pytest.approx(load[21], rel=0.3)
