@@ -264,3 +264,20 @@ class OscillationGroupOut(BaseModel):
         {}, description="Each member's lag behind the source, s (modulo half a period)."
     )
     at: str = Field(description="When the plant-wide pass found it (ISO 8601 UTC).")
+
+
+class AlertOut(BaseModel):
+    """One alert delivery (`GET /alerts`)."""
+
+    loop: str
+    state: State
+    cause: Cause
+    rule: str = Field(description="The rule that sent it.")
+    target: str = Field(description="Where it goes (an [[alerts.target]] name).")
+    status: Literal["pending", "delivered", "failed"]
+    attempts: int = Field(description="Delivery attempts made.")
+    at: str = Field(description="When the verdict changed (ISO 8601 UTC).")
+    delivered_at: str | None = None
+    next_try_at: str | None = Field(None, description="When a pending alert is tried next.")
+    key: str = Field(description="Its idempotency key (the webhook's Idempotency-Key).")
+    last_error: str = Field("", description="Why the last attempt failed.")

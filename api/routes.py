@@ -26,6 +26,7 @@ from plantcheck.api.deps import (
 from plantcheck.api.loop_table import LoopSort, LoopTable, loop_json, select_loops
 from plantcheck.api.models import (
     ActionOut,
+    AlertOut,
     DiagnoseNow,
     DiagnosisOut,
     LoopDetail,
@@ -37,6 +38,7 @@ from plantcheck.api.models import (
 )
 from plantcheck.core.names import NAME_PATTERN
 from plantcheck.core.vocabulary import Cause, LoopType
+from plantcheck.storage.alerts import list_alerts
 from plantcheck.storage.results import (
     active_actions,
     diagnosis_history,
@@ -155,6 +157,31 @@ async def list_diagnoses(
         )
         for d in items
     ]
+
+
+@router.get("/alerts", response_model=list[AlertOut], responses=UNAUTHORIZED)
+async def get_alerts(
+    backend: Backend,
+    request: Request,
+    response: Response,
+    times: Annotated[TimeRange, Depends()],
+    limit: Annotated[int, Query(ge=1, le=1000, description="Most alerts returned.")] = 100,
+    offset: Offset = 0,
+) -> list[AlertOut]:
+    """Alert deliveries (created in [from, to)), newest first: delivered, pending (with the
+    next try) or failed, with the attempts made and the last error."""
+    total, rows = await list_alerts(backend.store, times.start_us, times.end_us, limit, offset)
+    paginate(request, response, total, limit, offset)
+    return [
+        AlertOut(
+            loop=a.loop, state=a.state, cause=a.cause, rule=a.rule, target=a.target,
+            status=a.status, attempts=a.attempts, at=iso_required(a.created_us),
+            delivered_at=iso(a.delivered_us),
+            next_try_at=iso(a.next_try_us) if a.status == "pending" else None,
+            key=a.key, last_error=a.last_error,
+        )
+        for a in rows
+    ]  # fmt: skip
 
 
 MAX_SAMPLES_PAGE = 10_000

@@ -193,6 +193,19 @@ class Drill:
             raise RuntimeError(f"servers not down and back in {timeout_s:g} s: {back}")
         return back
 
+    def freshness_bound_s(self, watch_s: float = 6.0, floor_s: float = 5.0) -> float:
+        """How old the newest stored sample may be in undisturbed flow on this machine now:
+        the larger of ``floor_s`` and three times the oldest "newest sample" seen over
+        ``watch_s`` (a loaded machine runs late; a test's freshness follows what it managed
+        before its faults, not a fixed clock)."""
+        ages = []
+        t_end = time.monotonic() + watch_s
+        while time.monotonic() < t_end:
+            time.sleep(1.0)
+            now = time.time()
+            ages += [now - a.newest_us / 1e6 for a in map(self.account, LOOPS) if a.newest_us]
+        return max(floor_s, 3.0 * max(ages, default=0.0))
+
     def return_lag_s(self, protocol: str, back_us: int) -> float | None:
         """Seconds from a server's return (``back_us``) to the first sample received from it
         after that, or None when none came."""

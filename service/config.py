@@ -17,7 +17,6 @@ Tag syntax:
 from __future__ import annotations
 
 import ipaddress
-import os
 import re
 from pathlib import Path
 from typing import Literal
@@ -28,6 +27,8 @@ from pydantic import BaseModel, ConfigDict, Field, SecretStr, field_validator, m
 from plantcheck.core.names import NAME_PATTERN, NAME_RULE
 from plantcheck.core.toml_config import ConfigError, dotted, load_toml, locate
 from plantcheck.core.vocabulary import LoopType
+from plantcheck.service.alert_config import AlertsConfig
+from plantcheck.service.config_secrets import read_secret
 
 DEFAULT_CONFIG = Path("plantcheck.toml")
 SIGNAL_KEYS = ("sp", "pv", "op", "mv", "mode")
@@ -59,34 +60,6 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
-
-
-def read_secret(what: str, inline: str, env: str, file: str) -> str | None:
-    """A secret given at most one way: in the file (``inline``), by the name of an environment
-    variable (``env``) or of a file whose first line holds it (``file``, e.g. a systemd
-    credential); None when not given. ValueError naming ``what`` and the fix otherwise."""
-    given = [k for k, v in (("inline", inline), ("_env", env), ("_file", file)) if v]
-    name = what.rsplit(" ", 1)[-1]
-    if len(given) > 1:
-        keys = [name if k == "inline" else name + k for k in given]
-        raise ValueError(f"{what}: give it one way, not {' and '.join(keys)}")
-    if env:
-        value = os.environ.get(env)
-        if value is None:
-            raise ValueError(
-                f"{what}: {name}_env = {env!r} but that environment variable is not set (set "
-                f"it, or use {name}_file)"
-            )
-        return value
-    if file:
-        try:
-            lines = Path(file).read_text(encoding="utf-8").splitlines()
-        except OSError as exc:
-            raise ValueError(
-                f"{what}: {name}_file {file!r} cannot be read ({exc.strerror})"
-            ) from None
-        return lines[0] if lines else ""
-    return inline or None
 
 
 class StorageConfig(_Strict):
@@ -380,6 +353,7 @@ class Config(_Strict):
     scheduler: SchedulerConfig = SchedulerConfig()
     source: list[SourceConfig] = []
     loop: list[LoopConfig] = []
+    alerts: AlertsConfig = AlertsConfig()
 
     def collectors(self) -> list[str]:
         """The collectors named by the sources, in configuration order."""
@@ -449,6 +423,12 @@ class Config(_Strict):
                     out.append(
                         (("loop", i, sig), f"{tag!r} is not a node id, e.g. 'ns=2;s=FIC101.PV'")
                     )
+        for i, rule in enumerate(self.alerts.rule):
+            unknown = [name for name in rule.loops if name not in seen]
+            if unknown:
+                out.append(
+                    (("alerts", "rule", i, "loops"), f"unknown loop {unknown[0]!r} in the rule")
+                )
         return out
 
 

@@ -139,6 +139,15 @@ class ServiceMetrics:
             "Jobs of dead workers handed to the queue again.",
             registry=r,
         )
+        self.alerts = Counter(
+            "plantcheck_alerts",
+            "Alert delivery attempts by outcome (delivered, retried, failed).",
+            ["status"],
+            registry=r,
+        )
+        self.alerts_pending = Gauge(
+            "plantcheck_alerts_pending", "Alerts waiting in the outbox.", registry=r
+        )
         for s in STATES:
             self.loops.labels(s).set(0)
         self._received: deque[tuple[float, int]] = deque([(time.monotonic(), 0)])

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Literal
 from plantcheck.api.deps import iso
 from plantcheck.api.models import Readiness, StorageOut
 from plantcheck.connectors.base import SourceHealth, now_us
+from plantcheck.service.alert_rules import rules_for_loop
+from plantcheck.service.alerts import AlertDispatcher
 from plantcheck.service.config import Config
 from plantcheck.service.ingest import HEALTH_REPORT_S, Ingestion, down_past_grace
 from plantcheck.service.metrics import ServiceMetrics
@@ -118,6 +120,10 @@ def schedules_of(cfg: Config) -> list[LoopSchedule]:
             lp.stiction_limit,
             lp.dead_time_s,
             tuple(lp.controller.model_dump().items()),
+            lp.description,
+            lp.area,
+            lp.criticality,
+            rules_for_loop(cfg.alerts.rule, lp.id, lp.area, lp.criticality),
         )
         for lp in cfg.loop
     ]
@@ -150,6 +156,8 @@ class Runtime:
     _lock_store: Store | None = None
     plant_watch: PlantOscillationWatch | None = None
     """The plant-wide oscillation pass (while scheduling)."""
+    alert_dispatcher: AlertDispatcher | None = None
+    """Delivers the alert outbox (while scheduling, with alert targets configured)."""
     _watch: asyncio.Task[None] | None = None
     _reports: asyncio.Task[None] | None = None
     _remote: list[SourceHealth] = field(default_factory=list)
@@ -205,22 +213,28 @@ class Runtime:
                     ing.store, schedules_of(cfg), d.window_s, d.period_s
                 )
                 self.plant_watch.start()
+                if cfg.alerts.target:
+                    self.alert_dispatcher = AlertDispatcher(ing.store, cfg.alerts, metrics)
+                    self.alert_dispatcher.start()
             metrics.set_loop_states(await loop_states(ing.store))
         except BaseException:
-            await self._stop_plant_watch()
+            await self._stop_plant_tasks()
             if sched is not None:
                 await sched.stop()
             await ing.stop()
             raise
         self.ingestion, self.scheduler = ing, sched
 
-    async def _stop_plant_watch(self) -> None:
+    async def _stop_plant_tasks(self) -> None:
+        if self.alert_dispatcher is not None:
+            await self.alert_dispatcher.stop()
+            self.alert_dispatcher = None
         if self.plant_watch is not None:
             await self.plant_watch.stop()
             self.plant_watch = None
 
     async def _step_down(self) -> None:
-        await self._stop_plant_watch()
+        await self._stop_plant_tasks()
         if self.scheduler is not None:
             await self.scheduler.stop()
         if self.ingestion is not None:

@@ -41,6 +41,7 @@ from apscheduler.schedulers.asyncio import AsyncIOScheduler
 
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.diagnosis.tuning_proposal import TUNING_CAUSES
+from plantcheck.service.alert_rules import LoopAlertRule, drafts_for
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window
 from plantcheck.service.worker_lifetime import die_with_parent
@@ -97,6 +98,11 @@ class LoopSchedule:
     """The configured process dead time (s), for the Harris index."""
     controller: tuple[tuple[str, object], ...] = ()
     """The controller's form (``ControllerConfig`` items): the retuning's output form."""
+    description: str = ""
+    area: str = ""
+    criticality: int | None = None
+    alert_rules: tuple[LoopAlertRule, ...] = ()
+    """The alert rules that apply to this loop (``alert_rules.rules_for_loop``)."""
 
 
 @dataclass
@@ -130,6 +136,11 @@ def judges_tuning(payload: dict[str, Any]) -> bool:
 
 BASELINE_REFRESH_S = 6 * 3600.0
 """How often a loop's baseline is read again from its stored diagnoses (s)."""
+
+
+def _iso(us: int) -> str:
+    """µs since the epoch as ISO 8601 UTC with milliseconds (the API's form)."""
+    return datetime.fromtimestamp(us / 1e6, UTC).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
 def _now_us() -> int:
@@ -417,7 +428,18 @@ class DiagnosisScheduler:
         adopt = st.streak >= self.confirm
         if adopt:
             st.confirmed = cause
-        if await self.verdicts.write(PendingVerdict(verdict, adopt, st.streak_since_us)):
+        sched = self.schedules[row.name]
+        drafts = drafts_for(
+            sched.alert_rules,
+            {
+                "loop": row.name, "type": sched.loop_type, "description": sched.description,
+                "state": verdict.state, "cause": cause, "action": verdict.action_text,
+                "since": _iso(st.streak_since_us), "area": sched.area,
+                "criticality": sched.criticality,
+            },
+        ) if adopt else ()  # fmt: skip
+        pending = PendingVerdict(verdict, adopt, st.streak_since_us, drafts)
+        if await self.verdicts.write(pending):
             log.info("%s: %s (%s)", row.name, cause, verdict.state)
             self._count_states_soon()
 

@@ -8,7 +8,7 @@ since 1970-01-01 UTC, as everywhere in the store.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from sqlalchemy import bindparam, func, insert, select, update
@@ -16,6 +16,7 @@ from sqlalchemy.ext.asyncio import AsyncConnection
 from sqlalchemy.sql.elements import ColumnElement
 
 from plantcheck.diagnosis.priority import loop_priority
+from plantcheck.storage.alerts import AlertDraft, enqueue_alerts
 from plantcheck.storage.schema import actions, diagnoses, loops, stiction_estimates
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.trends import (
@@ -90,6 +91,8 @@ class PendingVerdict:
     verdict: Verdict
     adopt: bool = True
     since_us: int | None = None
+    alerts: tuple[AlertDraft, ...] = ()
+    """Alerts to store with the verdict if it changes (``storage.alerts``)."""
 
 
 async def record_verdict(
@@ -165,6 +168,12 @@ async def record_verdicts(store: Store, batch: Sequence[PendingVerdict]) -> list
                 )
         if new:
             await _adopt(conn, new)
+            for p in new:
+                if p.alerts:
+                    before = cur.get(p.verdict.loop.id)
+                    drafts = [replace(d, payload={**d.payload, "previous_cause": before})
+                              for d in p.alerts]  # fmt: skip
+                    await enqueue_alerts(conn, p.verdict.loop.id, p.verdict.created_us, drafts)
         estimates = [p.verdict for p in batch if p.verdict.S is not None]
         if estimates:
             await conn.execute(

@@ -179,3 +179,26 @@ plant_oscillations = Table(
     Column("at_us", BigInteger, nullable=False),
     Column("groups", JSON, nullable=False),
 )
+
+alerts = Table(
+    "alerts",
+    metadata,
+    # the alert outbox (``service/alerts.py``): one row per message to one target, written in
+    # the transaction of the verdict change it reports, delivered (and retried) from here
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("loop_id", Integer, ForeignKey("loops.id", ondelete="CASCADE"), nullable=False),
+    Column("key", String(200), nullable=False, unique=True),
+    Column("rule", String(64), nullable=False),
+    Column("target", String(64), nullable=False),
+    Column("state", String(16), nullable=False),
+    Column("cause", String(32), nullable=False),
+    Column("payload", JSON, nullable=False),
+    Column("status", String(16), nullable=False, default="pending"),
+    Column("attempts", Integer, nullable=False, default=0),
+    Column("created_us", BigInteger, nullable=False),
+    Column("next_try_us", BigInteger, nullable=False),
+    Column("delivered_us", BigInteger, nullable=True),
+    Column("last_error", Text, nullable=False, default=""),
+    Index("ix_alerts_due", "status", "next_try_us"),
+    Index("ix_alerts_quiet", "loop_id", "rule", "created_us"),
+)

@@ -56,6 +56,7 @@ def test_a_failing_disk_is_reported_and_loses_nothing(tmp_path: Path, layout: st
         buffer_dir = disk.path if layout.startswith("one disk") else tmp_path
         with drill(tmp_path, db_dir=disk.path, buffer_dir=buffer_dir) as d:
             _poll(d, lambda r, code, s: code == 200 and s["samples_stored"] > 20, 60)
+            fresh_s = d.freshness_bound_s()  # what this machine manages before the fault
             disk.fault()
             took, seen = _poll(d, lambda r, code, s: code == 503 and not r["storage"], 10)
             assert took <= 5.0, seen
@@ -85,7 +86,7 @@ def test_a_failing_disk_is_reported_and_loses_nothing(tmp_path: Path, layout: st
             for protocol in LOOPS:
                 a = d.account(protocol)
                 assert a.silent_holes == 0 and a.lost == 0, (protocol, a)
-                assert a.newest_us and time.time() - a.newest_us / 1e6 < 5.0, (protocol, a)
+                assert a.newest_us and time.time() - a.newest_us / 1e6 < fresh_s, (protocol, a)
         log = d.log.read_text(errors="replace")
         assert "Traceback" not in log, log[-3000:]
         assert log.count("store not taking samples") == 1, log[-3000:]

@@ -29,15 +29,7 @@ from soak import FAULTS, LOOPS, drill
 @pytest.mark.slow
 def test_every_fault_is_marked_and_nothing_is_lost_outside_them(tmp_path: Path) -> None:
     with drill(tmp_path) as d:
-        # the newest sample's age in undisturbed flow: a loaded machine runs late, and the
-        # freshness asked after the faults follows what this machine managed before them
-        ages = []
-        t_end = time.monotonic() + 6.0
-        while time.monotonic() < t_end:
-            time.sleep(1.0)
-            now = time.time()
-            ages += [now - a.newest_us / 1e6 for a in map(d.account, LOOPS) if a.newest_us]
-        fresh_s = max(5.0, 3.0 * max(ages, default=0.0))
+        fresh_s = d.freshness_bound_s()  # what this machine manages before the faults
         back: dict[str, int] = {}
         for kind in FAULTS:
             d.fault(kind)
