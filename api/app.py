@@ -19,7 +19,7 @@ from fastapi.staticfiles import StaticFiles
 from swagger_ui_bundle import swagger_ui_path
 
 from plantcheck import __version__
-from plantcheck.api import health, plant, reports, routes, web
+from plantcheck.api import health, health_reports, plant, reports, routes, web
 from plantcheck.api.gate import AccessSettings, HeavyReadGate, ReadKeyGate
 from plantcheck.api.loop_table import LoopTable
 from plantcheck.storage.errors import store_outage_errors
@@ -57,6 +57,7 @@ def create_app(api_config: AccessSettings, lifespan: Lifespan) -> FastAPI:
     app.include_router(routes.router)
     app.include_router(reports.router)
     app.include_router(plant.router)
+    app.include_router(health_reports.router)
     app.include_router(health.router)
     app.include_router(web.router)
     app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")

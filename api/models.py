@@ -281,3 +281,71 @@ class AlertOut(BaseModel):
     next_try_at: str | None = Field(None, description="When a pending alert is tried next.")
     key: str = Field(description="Its idempotency key (the webhook's Idempotency-Key).")
     last_error: str = Field("", description="Why the last attempt failed.")
+
+
+class ActionEvent(BaseModel):
+    """An action opened or closed in a report's period."""
+
+    cause: Cause
+    code: str
+    text: str
+    at: str
+
+
+class LoopWeekOut(BaseModel):
+    """One loop in the loop-health report."""
+
+    loop: str
+    area: str
+    criticality: int | None
+    state: State = Field(description="The loop's state now.")
+    cause: Cause | None
+    diagnoses: int = Field(description="Diagnoses in the period.")
+    hours_in_state: dict[str, float] = Field(
+        description="Hours of the period in each state (its span times the share of its "
+        "diagnoses in that state)."
+    )
+    kpis: dict[str, float | None] = Field(description="Mean of each index over the period.")
+    kpis_before: dict[str, float | None] = Field(
+        description="The same over the period of equal length before: the trend."
+    )
+    opened: list[ActionEvent]
+    closed: list[ActionEvent]
+
+
+class HealthReport(BaseModel):
+    """The loop-health report (`GET /reports/weekly`)."""
+
+    generated_at: str
+    start: str
+    end: str
+    loops: list[LoopWeekOut]
+
+
+class MaintenanceValve(BaseModel):
+    """One valve of the maintenance report."""
+
+    loop: str
+    area: str
+    criticality: int | None
+    cause: Cause | None
+    current_S: float | None = Field(description="S now (% of travel), the trend's method.")
+    limit: float = Field(description="The valve's S limit (% of travel).")
+    slope_per_week: float | None
+    above_limit: bool
+    projected_crossing: str | None = Field(
+        description="When S is projected to pass its limit (ISO 8601 UTC)."
+    )
+    trend_method: str | None
+    op_travel_per_day: float | None = Field(description="% of span per day (latest window).")
+    op_reversals_per_day: float | None
+    mv_travel_per_day: float | None
+    mv_reversals_per_day: float | None
+    action: str | None
+
+
+class MaintenanceReport(BaseModel):
+    """Valves ranked by when their stiction passes its limit (`GET /reports/maintenance`)."""
+
+    generated_at: str
+    valves: list[MaintenanceValve]

@@ -19,6 +19,7 @@ from jinja2 import pass_context
 
 from plantcheck import __version__
 from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
+from plantcheck.api.health_reports import build_health_report, build_maintenance_report
 from plantcheck.api.loop_table import LoopSort, LoopTable, select_loops
 from plantcheck.api.reports import build_report
 from plantcheck.storage.plant_oscillations import latest_plant_oscillations
@@ -186,6 +187,29 @@ async def plant_page(request: Request, backend: Backend) -> HTMLResponse:
             "title": "Plant",
         },
     )
+
+
+@router.get("/weekly", response_class=HTMLResponse)
+async def weekly_page(
+    request: Request, backend: Backend, times: Annotated[TimeRange, Depends()]
+) -> HTMLResponse:
+    """The loop-health report: time in each state, indices against the week before, actions
+    opened and closed (``GET /api/v1/reports/weekly``)."""
+    report = await build_health_report(backend, times)
+    return _page(
+        request,
+        backend,
+        "weekly.html",
+        {"report": report, "states": ["fault", "warning", "unknown", "ok"],
+         "title": "Loop-health report"},
+    )  # fmt: skip
+
+
+@router.get("/maintenance", response_class=HTMLResponse)
+async def maintenance_page(request: Request, backend: Backend) -> HTMLResponse:
+    """Valves ranked for maintenance (``GET /api/v1/reports/maintenance``)."""
+    report = await build_maintenance_report(backend)
+    return _page(request, backend, "maintenance.html", {"report": report, "title": "Maintenance"})
 
 
 @router.get("/actions", response_class=HTMLResponse)

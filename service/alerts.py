@@ -21,7 +21,6 @@ A failed attempt is tried again after ``retry_s`` (30 s), doubling up to an hour
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import hashlib
 import hmac
 import json
@@ -35,6 +34,7 @@ from typing import Any
 import httpx
 
 from plantcheck.service.alert_config import AlertsConfig, AlertTarget
+from plantcheck.service.background import BackgroundTask
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.storage.alerts import StoredAlert, alert_counts, due_alerts, mark_alert
 from plantcheck.storage.store import Store
@@ -102,8 +102,10 @@ async def send_webhook(
         raise RuntimeError(f"HTTP {r.status_code}: {r.text[:200]}")
 
 
-class AlertDispatcher:
-    """Delivers the outbox every ``poll_s`` (and at once when woken), one alert at a time."""
+class AlertDispatcher(BackgroundTask):
+    """Delivers the outbox every ``poll_s``, one alert at a time."""
+
+    name = "alert-dispatcher"
 
     def __init__(
         self,
@@ -117,19 +119,8 @@ class AlertDispatcher:
         self.metrics = metrics
         self.poll_s = poll_s
         self.targets = {t.name: t for t in cfg.target}
-        self._task: asyncio.Task[None] | None = None
         self._failing: set[str] = set()
         """Targets whose last attempt failed (logged once until one succeeds)."""
-
-    def start(self) -> None:
-        self._task = asyncio.create_task(self._run(), name="alert-dispatcher")
-
-    async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
 
     async def _run(self) -> None:
         clients = {

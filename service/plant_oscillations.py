@@ -13,7 +13,6 @@ before the others' is not diagnosed any more (its source is down) and stays out.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import time
 from collections.abc import Sequence
@@ -27,6 +26,7 @@ from plantcheck.diagnosis.plant_oscillation import (
     own_oscillation,
     plant_oscillations,
 )
+from plantcheck.service.background import BackgroundTask
 from plantcheck.service.scheduler import LoopSchedule
 from plantcheck.storage.plant_oscillations import (
     LatestDiagnosis,
@@ -79,9 +79,11 @@ async def plant_pass(
     return [asdict(g) | {"loops": list(g.loops), "evidence": list(g.evidence)} for g in groups]
 
 
-class PlantOscillationWatch:
+class PlantOscillationWatch(BackgroundTask):
     """Runs ``plant_pass`` every ``period_s`` and stores its groups (a failure logged once
     until a pass succeeds again)."""
+
+    name = "plant-oscillations"
 
     def __init__(
         self, store: Store, schedules: Sequence[LoopSchedule], window_s: float, period_s: float
@@ -90,18 +92,7 @@ class PlantOscillationWatch:
         self.schedules = list(schedules)
         self.window_s = window_s
         self.period_s = period_s
-        self._task: asyncio.Task[None] | None = None
         self._failing = False
-
-    def start(self) -> None:
-        self._task = asyncio.create_task(self._run(), name="plant-oscillations")
-
-    async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
 
     async def once(self) -> list[dict[str, Any]]:
         """One pass, stored; returns its groups."""

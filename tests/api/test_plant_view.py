@@ -90,7 +90,8 @@ async def _get(cfg: Config, paths: list[str]) -> list[Any]:
             for p in paths:
                 r = await client.get(p)
                 assert r.status_code == 200, (p, r.text)
-                out.append(r.json() if p.startswith("/api") else r.text)
+                csv = "format=csv" in p
+                out.append(r.json() if p.startswith("/api") and not csv else r.text)
             return out
 
 
@@ -109,6 +110,11 @@ def test_worst_first_filters_and_the_plant_summary(tmp_path: Path) -> None:
         page_south,
         oscillations,
         plant_page,
+        weekly,
+        weekly_page,
+        maintenance,
+        maintenance_page,
+        weekly_csv,
     ) = asyncio.run(
         _get(
             cfg,
@@ -124,9 +130,28 @@ def test_worst_first_filters_and_the_plant_summary(tmp_path: Path) -> None:
                 "/?area=south&sort=priority",
                 "/api/v1/plant/oscillations",
                 "/plant",
+                "/api/v1/reports/weekly",
+                "/weekly",
+                "/api/v1/reports/maintenance",
+                "/maintenance",
+                "/api/v1/reports/weekly?format=csv",
             ],
         )
     )
+    # the weekly report: a week of one diagnosis per loop, against the week before
+    week = {lp["loop"]: lp for lp in weekly["loops"]}
+    fic1 = week["FIC1"]
+    assert fic1["diagnoses"] == 1 and fic1["hours_in_state"] == {"fault": 168.0}
+    assert fic1["kpis"]["variability_ratio"] == 2.0 and fic1["kpis_before"]["harris_index"] is None
+    assert [a["cause"] for a in fic1["opened"]] == ["stiction"] and fic1["closed"] == []
+    assert week["PIC1"]["kpis"]["service_factor"] == 0.5
+    assert re.findall(r'<tr class="state-\w+" data-loop="(\w+)"', weekly_page) == sorted(week)
+    assert weekly_csv.splitlines()[0].startswith("loop,area,criticality,state,cause,diagnoses")
+    assert len(weekly_csv.splitlines()) == 1 + len(LOOPS)
+    # the maintenance report: the two sticky valves, with the indices of their latest window
+    assert sorted(v["loop"] for v in maintenance["valves"]) == ["FIC1", "FIC2"]
+    assert all(v["cause"] == "stiction" and v["current_S"] == 2.0 for v in maintenance["valves"])
+    assert 'data-loop="FIC1"' in maintenance_page and 'data-loop="TIC1"' not in maintenance_page
     assert [{k: g[k] for k in GROUP} for g in oscillations] == [GROUP]
     with sqlite3.connect(tmp_path / "store.db") as con:
         assert con.execute("SELECT count(*) FROM plant_oscillations").fetchone()[0] == KEEP

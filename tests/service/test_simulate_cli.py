@@ -47,7 +47,7 @@ def test_export_map_as_toml_and_csv(tmp_path: Path, run_cli: RunCli) -> None:
     r = run_cli("simulate", "--export-map", str(tmp_path / "map.csv"))
     rows = (tmp_path / "map.csv").read_text().splitlines()
     assert rows[0] == "loop,signal,address,type,word_order,byte_order,unit"
-    assert len(rows) == 1 + 2 + 8 * 5
+    assert len(rows) == 1 + 2 + 11 * 5
 
 
 def test_invalid_scenario_is_refused_with_line_and_key(tmp_path: Path, run_cli: RunCli) -> None:
