@@ -37,6 +37,9 @@ class OnlineDisturbance:
         self.upstream: LiveLoop | None = None
         """The loop whose cycle this disturbance carries (``from_loop``), set by the plant."""
         self.carried: deque[float] = deque(maxlen=max(1, round(spec.delay_s / ts) + 1))
+        self.path = 0.0
+        """The carried deviation after the path's lag."""
+        self.path_a = math.exp(-ts / spec.lag_s) if spec.lag_s > 0 else 0.0
 
     def value(self, t: float) -> float:
         """Disturbance at simulated time ``t`` (s); call once per step, in order."""
@@ -59,7 +62,8 @@ class OnlineDisturbance:
                 out += size
         if self.upstream is not None:
             self.carried.append(self.upstream.deviation)
-            out += d.gain * self.carried[0]
+            self.path += (1.0 - self.path_a) * (self.carried[0] - self.path)
+            out += d.gain * self.path
         return out
 
 

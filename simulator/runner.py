@@ -16,7 +16,7 @@ import logging
 import signal
 import time
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 
 from plantcheck.simulator.faults import ActiveFault, FaultState, serve_admin
 from plantcheck.simulator.modbus_server import ModbusPlantServer
@@ -44,7 +44,12 @@ class PlantRunner:
 
     def __init__(self, scenario: Scenario, start: datetime | None = None) -> None:
         self.scenario = scenario
-        self.plant = Plant(scenario, start or scenario.clock.start or datetime.now(UTC))
+        clock = scenario.clock
+        first = start or clock.start or datetime.now(UTC)
+        self.warmup_steps = round(clock.warmup_s / clock.sample_time_s)
+        """Steps run before serving (``clock.warmup_s``): the first sample served is at
+        ``first``, the plant having run since ``warmup_s`` before it."""
+        self.plant = Plant(scenario, first - timedelta(seconds=clock.warmup_s))
         self.faults = FaultState(list(scenario.fault), on_action=self._on_action)
         self.modbus = (
             ModbusPlantServer(scenario.modbus, scenario, self.faults)
@@ -103,7 +108,7 @@ class PlantRunner:
     def status(self) -> dict[str, object]:
         return {
             "time": self.plant.time.isoformat(),
-            "steps": self.plant.steps,
+            "steps": self.plant.steps - self.warmup_steps,
             "speed": self.scenario.clock.speed,
             "lag_s": round(self.stats.lag_s, 3),
             "loops": len(self.plant.loops),
@@ -114,7 +119,7 @@ class PlantRunner:
         late = due - self.plant.steps
         while self.plant.steps < due:
             self.plant.step()
-            self.faults.update(self.plant.t)
+            self.faults.update(self.plant.t - self.scenario.clock.warmup_s)
             if self.opcua and self.plant.steps > due - MAX_OPCUA_BURST:
                 await self.opcua.publish(self.plant)
         if late and self.modbus:
@@ -127,6 +132,8 @@ class PlantRunner:
 
     async def run(self) -> None:
         """Serve until ``stop()``: servers, admin interface, signals, clock."""
+        while self.plant.steps < self.warmup_steps:
+            self.plant.step()
         await self.start_servers()
         a = self.scenario.admin
         if a.enabled:
@@ -149,15 +156,15 @@ class PlantRunner:
         try:
             while not self._stop.is_set():
                 elapsed = time.monotonic() - wall0
-                due = int(elapsed / step_wall) + 1
+                due = self.warmup_steps + int(elapsed / step_wall) + 1
                 await self._tick(due)
-                lag = time.monotonic() - wall0 - (due - 1) * step_wall
+                lag = time.monotonic() - wall0 - (due - 1 - self.warmup_steps) * step_wall
                 self.stats.lag_s = lag
                 self.stats.max_lag_s = max(self.stats.max_lag_s, lag)
                 self.stats.lags.append(lag)
                 if len(self.stats.lags) > 100_000:
                     del self.stats.lags[:50_000]
-                wait = wall0 + due * step_wall - time.monotonic()
+                wait = wall0 + (due - self.warmup_steps) * step_wall - time.monotonic()
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(self._stop.wait(), max(wait, 0.0005))
         finally:

@@ -37,8 +37,12 @@ class ClockSpec(_Strict):
     speed: float = Field(1.0, gt=0, le=100_000)
     """Simulated seconds per wall-clock second (1 = real time; 100 = a day in 14.4 minutes)."""
     start: datetime | None = None
-    """Simulated time of the first sample (ISO 8601, UTC when no zone); default: now."""
+    """Simulated time of the first sample served (ISO 8601, UTC when no zone); default: now."""
     seed: int = 1
+    warmup_s: float = Field(0.0, ge=0, le=7 * 86_400)
+    """Simulated seconds run before the servers start: a plant has been running when it is
+    first read, so its first windows hold no start-up transient (the live servers only;
+    records written with ``--to-csv`` start cold)."""
 
     @field_validator("start")
     @classmethod
@@ -143,8 +147,8 @@ class DisturbanceSpec(_Strict):
     Sine (amplitude, period), random walk (std per √s), first-order filtered noise (std, tau),
     fixed steps ``[[time_s, size], ...]``, random steps (one every ``step_every_s`` on
     average, normal sizes with std ``step_std``) and another loop's cycle: ``from_loop``'s
-    PV deviation from its set point (% of its span) times ``gain``, ``delay_s`` later (a
-    plant-wide oscillation travelling downstream).
+    PV deviation from its set point (% of its span) times ``gain``, ``delay_s`` later through
+    a first-order lag ``lag_s`` (a plant-wide oscillation travelling downstream).
     """
 
     where: Literal["load", "output"] = "load"
@@ -159,6 +163,8 @@ class DisturbanceSpec(_Strict):
     from_loop: str = ""
     gain: float = 1.0
     delay_s: float = Field(0.0, ge=0, le=3600)
+    lag_s: float = Field(0.0, ge=0, le=3600)
+    """First-order lag (s) of the path from ``from_loop`` (the process between two loops)."""
 
 
 class LoopSpec(_Strict):

@@ -21,13 +21,16 @@ def scenario_on_free_ports(
     *,
     speed: float = 1.0,
     sample_time_s: float = 1.0,
+    warmup_s: float = 0.0,
     **modbus: object,
 ) -> Scenario:
-    """The scenario (default: the bundled one) with every server on a free loopback port."""
+    """The scenario (default: the bundled one) with every server on a free loopback port,
+    started cold unless ``warmup_s`` says otherwise (the tests count steps from the start)."""
     sc = scenario or load_scenario()
+    clock = {"speed": speed, "sample_time_s": sample_time_s, "warmup_s": warmup_s}
     return sc.model_copy(
         update={
-            "clock": sc.clock.model_copy(update={"speed": speed, "sample_time_s": sample_time_s}),
+            "clock": sc.clock.model_copy(update=clock),
             "modbus": sc.modbus.model_copy(
                 update={"host": "127.0.0.1", "port": free_port(), **modbus}
             ),

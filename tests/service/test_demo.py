@@ -44,6 +44,7 @@ def _watch_true_causes(proc: subprocess.Popen[bytes], port: int) -> float:
         except httpx.TransportError:
             continue
         seen = {lp["id"]: (lp["cause"], lp["S"]) for lp in loops}
+        print(f"{time.monotonic() - t0:5.0f} s {seen}", flush=True)
         if all(
             seen.get(name, (None, None))[0] == spec.cause
             and (spec.valve.S == 0 or seen[name][1] is not None)

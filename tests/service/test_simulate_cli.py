@@ -87,8 +87,15 @@ def test_simulate_serves_until_stopped() -> None:
 
     try:
         deadline = time.monotonic() + 30
-        while (steps1 := asyncio.run(read())) == 0 and time.monotonic() < deadline:
-            time.sleep(0.2)  # the clock starts once both servers listen
+        # the servers first show the plant after its warm-up; the clock starts once both
+        # listen: the count moves from there
+        first = None
+        while time.monotonic() < deadline:
+            steps1 = asyncio.run(read())
+            if first is not None and steps1 > first:
+                break
+            first = steps1 if steps1 else None
+            time.sleep(0.2)
         time.sleep(1.0)
         steps2 = asyncio.run(read())
         assert steps2 - steps1 >= 25  # 50x real time at 1 s per step
