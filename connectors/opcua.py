@@ -60,10 +60,19 @@ def to_sample(tag_id: int, dv: Any, recv_us: int) -> Sample:
 
 
 class _Handler:
+    """One session's subscription handler. A session given up (stalled, then replaced) can
+    still deliver notifications it had queued once its server answers again: values from
+    before the outage, which, stored after it was marked, would split the marked outage
+    into a marked part and a silent one (the fault suite found a 5-s silent hole so). Only
+    the current session's notifications are passed on."""
+
     def __init__(self, owner: OpcUaConnector) -> None:
         self.owner = owner
+        self.session = owner.session
 
     def datachange_notification(self, node: Any, val: Any, data: Any) -> None:
+        if self.session != self.owner.session:
+            return
         tag_id = self.owner.by_node.get(node.nodeid.to_string())
         if tag_id is not None:
             self.owner.emit([to_sample(tag_id, data.monitored_item.Value, now_us())])
@@ -102,6 +111,8 @@ class OpcUaConnector(DeviceConnector):
         self.mode = mode
         self.timeout_s = timeout_s
         self.client: Client | None = None
+        self.session = 0
+        """Counts the sessions made: a handler passes on only its own session's data."""
         self.polling = mode == "poll"
         publish_s = max(sampling_interval_s, 0.5)
         self.watchdog_s = watchdog_s if watchdog_s is not None else max(5.0, 5 * publish_s)
@@ -124,6 +135,7 @@ class OpcUaConnector(DeviceConnector):
 
     async def connect(self) -> None:
         # the session is ours: a loss ends it and run() builds a new one (module docstring)
+        self.session += 1
         client = Client(self.url, timeout=self.timeout_s, auto_reconnect=False)
         # 10 minutes, what servers commonly grant (asyncua asks an hour, and warns at every
         # connection when the server revises it down)
