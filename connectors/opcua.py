@@ -179,6 +179,13 @@ class OpcUaConnector(DeviceConnector):
         self.nodes = nodes
         self.by_node = {n.to_string(): tid for tid, n in nodes}
 
+    def gap_time_us(self) -> int:
+        """Just after the newest source time received: the marker belongs on the server's
+        time axis. On the receiver's clock it fell among the samples of the outage whenever
+        the server's clock ran behind (a simulator late under load, a plant clock off), and
+        those, stored before it, made a silent hole of a marked outage (the fault suite)."""
+        return max(self._last_ts.values()) + 1 if self._last_ts else now_us()
+
     def emit(self, rows: Sequence[Sample]) -> None:
         self._last_data_us = now_us()
         for r in rows:

@@ -79,8 +79,11 @@ class PlantOscillationParams:
     """Least normalised cross-correlation of the band-passed signals within half a period."""
     band: float = 0.3
     """Half-width of the band-pass around the common frequency, relative to it."""
-    min_cycles: float = 4.0
-    """Fewest whole cycles of the common period the shared span must hold."""
+    min_cycles: float = 10.0
+    """Fewest whole cycles of the common period the shared span must hold: two independent
+    oscillations whose periods differ by δ drift apart by N·δ cycles over N cycles, so a
+    short span makes near periods look coherent (two of the demo's sticky valves, 58.4 s and
+    the 2nd harmonic of 28.8 s, were grouped on 4-6 cycles)."""
 
 
 OWN_RANK = {**dict.fromkeys(VALVE_CAUSES, 0), "aggressive_tuning": 1}

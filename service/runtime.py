@@ -163,6 +163,7 @@ class Runtime:
     _remote: list[SourceHealth] = field(default_factory=list)
     """Health of the sources other processes read (collectors, the leader), from the store."""
     _stored_seen: int = 0
+    _stopping: asyncio.Event = field(default_factory=asyncio.Event)
 
     @classmethod
     async def start(
@@ -297,12 +298,21 @@ class Runtime:
                 self._remote = remote_health(
                     self.cfg, self._local_names(), await reported_health(self.store), now_us()
                 )
-            await asyncio.sleep(HEALTH_REPORT_S)
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._stopping.wait(), HEALTH_REPORT_S)
+            if self._stopping.is_set():
+                return
 
     def _local_names(self) -> set[str]:
         return {c.name for c in self.ingestion.connectors} if self.ingestion else set()
 
     async def stop(self) -> None:
+        # the reports' reader ends between two reads: cancelled within one, the database
+        # driver's thread would answer a loop that has closed
+        self._stopping.set()
+        if self._reports is not None:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(asyncio.shield(self._reports), 10.0)
         for task in (self._watch, self._reports):
             if task is not None:
                 task.cancel()

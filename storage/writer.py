@@ -43,6 +43,10 @@ def _now_us() -> int:
     return time.time_ns() // 1000
 
 
+HOUSEKEEPING_STOP_S = 5.0
+"""How long a stop waits for the housekeeping slice under way (s)."""
+
+
 @dataclass
 class WriterStats:
     """Counters exposed by ``/metrics``, ``/readyz`` and ``GET /api/v1/storage``."""
@@ -399,10 +403,15 @@ class SampleWriter:
         neither are counted and logged, never dropped silently."""
         self._stop.set()
         if self._house_task is not None:
-            # idempotent work: a slice cut short is done again next hour
-            self._house_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._house_task
+            # it ends after its slice (``_stop``): cancelled inside one, the database driver's
+            # thread would answer a loop that may have closed by then. A slice that takes too
+            # long is cut short (idempotent work: done again next hour)
+            try:
+                await asyncio.wait_for(asyncio.shield(self._house_task), HOUSEKEEPING_STOP_S)
+            except TimeoutError:
+                self._house_task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await self._house_task
         if self._task is not None:
             with contextlib.suppress(Exception):
                 await self._task

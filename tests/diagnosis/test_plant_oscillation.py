@@ -82,8 +82,8 @@ def test_harmonics_and_periods_apart() -> None:
 
 
 def test_a_short_shared_span_groups_nothing() -> None:
-    m = [OscillatingLoop(x.loop, x.periods_s, x.signal[:200], x.own) for x in _members()]
-    assert plant_oscillations(m, TS) == []  # 200 s hold 3 cycles of 60 s: too few
+    m = [OscillatingLoop(x.loop, x.periods_s, x.signal[:500], x.own) for x in _members()]
+    assert plant_oscillations(m, TS) == []  # 500 s hold 8 cycles of 60 s: too few
 
 
 def test_own_oscillation_from_a_diagnosis() -> None:
