@@ -18,6 +18,10 @@ from plantcheck.service.app import build_app
 from plantcheck.service.config import Config
 from plantcheck.storage.database import upgrade
 
+# an app stopped right after it started must not leave a database call answering a closed
+# event loop (the writer's housekeeping was cancelled inside a query)
+pytestmark = pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
+
 KEY = "a-long-secret"
 PROBES = {"/healthz", "/readyz"}
 NOT_IN_SCHEMA = ["/openapi.json", "/docs", "/docs-assets/swagger-ui.css", "/static/app.js", "/",
