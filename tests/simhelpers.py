@@ -22,11 +22,16 @@ def scenario_on_free_ports(
     speed: float = 1.0,
     sample_time_s: float = 1.0,
     warmup_s: float = 0.0,
+    only: tuple[str, ...] = (),
     **modbus: object,
 ) -> Scenario:
     """The scenario (default: the bundled one) with every server on a free loopback port,
-    started cold unless ``warmup_s`` says otherwise (the tests count steps from the start)."""
+    started cold unless ``warmup_s`` says otherwise (the tests count steps from the start);
+    ``only``: just these loops (a simulator in the test's own event loop serves only what the
+    test reads, which a loaded machine keeps up with)."""
     sc = scenario or load_scenario()
+    if only:
+        sc = sc.model_copy(update={"loop": [lp for lp in sc.loop if lp.id in only]})
     clock = {"speed": speed, "sample_time_s": sample_time_s, "warmup_s": warmup_s}
     return sc.model_copy(
         update={
