@@ -26,13 +26,14 @@ from plantcheck.api.models import (
 )
 from plantcheck.diagnosis.tuning_proposal import VALVE_CAUSES
 from plantcheck.storage.health_report import TRENDED, LoopPeriod, loop_periods
+from plantcheck.storage.plant_summary import WEEK_US
 from plantcheck.storage.results import active_actions, loop_statuses
 from plantcheck.storage.trends import read_trends
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
-WEEK_US = 7 * 86_400 * 1_000_000
 STATES = ("fault", "warning", "unknown", "ok")
+"""The states as the reports and pages list them: the worst first."""
 Format = Annotated[
     Literal["json", "csv"], Query(alias="format", description="json (default) or csv.")
 ]

@@ -21,6 +21,7 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Response
 from plantcheck.api.deps import Backend, TimeRange, iso, iso_required, require_read_key
 from plantcheck.api.models import StictionPoint, StictionReport, ValveReport, WeekOut
 from plantcheck.diagnosis.stiction_trend import TrendParams
+from plantcheck.storage.plant_summary import WEEK_US
 from plantcheck.storage.results import (
     LoopStatus,
     active_actions,
@@ -32,7 +33,6 @@ from plantcheck.storage.trends import StoredEstimate, StoredTrend, read_trends
 
 router = APIRouter(prefix="/api/v1", dependencies=[Depends(require_read_key)])
 
-WEEK_US = 7 * 24 * 3600 * 1_000_000
 MONDAY_US = 4 * 24 * 3600 * 1_000_000
 """1970-01-01 was a Thursday: weeks start on Monday 00:00 UTC."""
 

@@ -19,7 +19,11 @@ from jinja2 import pass_context
 
 from plantcheck import __version__
 from plantcheck.api.deps import Backend, TimeRange, get_loop, iso, require_read_key
-from plantcheck.api.health_reports import build_health_report, build_maintenance_report
+from plantcheck.api.health_reports import (
+    STATES,
+    build_health_report,
+    build_maintenance_report,
+)
 from plantcheck.api.loop_table import LoopSort, LoopTable, select_loops
 from plantcheck.api.reports import build_report
 from plantcheck.storage.plant_oscillations import latest_plant_oscillations
@@ -183,7 +187,7 @@ async def plant_page(request: Request, backend: Backend) -> HTMLResponse:
             "summary": summary,
             "groups": groups,
             "groups_at_us": at_us,
-            "states": ["fault", "warning", "unknown", "ok"],
+            "states": STATES,
             "title": "Plant",
         },
     )
@@ -200,7 +204,7 @@ async def weekly_page(
         request,
         backend,
         "weekly.html",
-        {"report": report, "states": ["fault", "warning", "unknown", "ok"],
+        {"report": report, "states": STATES,
          "title": "Loop-health report"},
     )  # fmt: skip
 

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from apscheduler.schedulers.asyncio import AsyncIOScheduler
 
+from plantcheck.api.deps import iso_required
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.diagnosis.tuning_proposal import TUNING_CAUSES
 from plantcheck.service.alert_rules import LoopAlertRule, drafts_for
@@ -136,11 +137,6 @@ def judges_tuning(payload: dict[str, Any]) -> bool:
 
 BASELINE_REFRESH_S = 6 * 3600.0
 """How often a loop's baseline is read again from its stored diagnoses (s)."""
-
-
-def _iso(us: int) -> str:
-    """µs since the epoch as ISO 8601 UTC with milliseconds (the API's form)."""
-    return datetime.fromtimestamp(us / 1e6, UTC).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
 
 
 def _now_us() -> int:
@@ -434,7 +430,7 @@ class DiagnosisScheduler:
             {
                 "loop": row.name, "type": sched.loop_type, "description": sched.description,
                 "state": verdict.state, "cause": cause, "action": verdict.action_text,
-                "since": _iso(st.streak_since_us), "area": sched.area,
+                "since": iso_required(st.streak_since_us), "area": sched.area,
                 "criticality": sched.criticality,
             },
         ) if adopt else ()  # fmt: skip
