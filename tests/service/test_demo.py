@@ -129,8 +129,8 @@ def test_modbus_simulator_at_20x_read_by_its_clock_shows_every_true_cause(
     )  # fmt: skip
     assert mapped.returncode == 0, mapped.stderr
     tables = (tmp_path / "map.toml").read_text(encoding="utf-8")
-    # the plant's clock stamps the values, read once per simulated second (50 ms at 20x)
-    assert 'clock = "hr:0:float64"' in tables and "poll_interval_s = 0.05" in tables
+    # the plant's clock stamps the values, read twice per simulated second (25 ms at 20x)
+    assert 'clock = "hr:0:float64"' in tables and "poll_interval_s = 0.025" in tables
     db = tmp_path / "plant.db"
     config = tmp_path / "plantcheck.toml"
     config.write_text(
