@@ -163,7 +163,11 @@ def main() -> int:
             )
             failed |= rc != 0
             if rc != 0:
-                print(out[-6000:])
+                # what failed and why first: the tail alone is the captured output of the
+                # last failure, often without its assertion
+                lines = out.splitlines()
+                print("\n".join(ln for ln in lines if ln.startswith(("E ", "____", "FAILED"))))
+                print(out[-3000:])
         timings.append(("the first hour, in all", time.monotonic() - t_all))
         print("\nstep".ljust(44) + "wall")
         for name, sec in timings:

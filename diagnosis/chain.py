@@ -19,6 +19,12 @@ from plantcheck.diagnosis.baseline import DEGRADED_RATIO, Baseline, variability
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
 from plantcheck.diagnosis.cause_model import CauseModel, decide, shipped_cause_model
 from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
+from plantcheck.diagnosis.controller_change import (
+    ControllerChangeParams,
+    change_json,
+    change_note,
+    latest_controller_change,
+)
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import evidence_vector, shape_evidence, window_evidence
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
@@ -112,6 +118,9 @@ class ChainParams:
     retuning: TuningSettings = field(default_factory=TuningSettings)
     """Identification and retuning of a loop diagnosed with its tuning wrong (issue 48), and
     the form its controller takes the setting in."""
+    controller_change: ControllerChangeParams | None = field(default_factory=ControllerChangeParams)
+    """The search for a retuning inside the window, judged from it on (None: judge the whole
+    window whatever its controller did)."""
     fast_processes: tuple[tuple[str, float], ...] = (("flow", 20.0),)
     """Loop types whose process follows the valve within this many seconds (lag and dead
     time): a flow (Kano et al. 2004 and Yamashita 2006 read the flow as the valve position).
@@ -260,6 +269,17 @@ def _standard(
     p = params or ChainParams()
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
+    change = None
+    if p.controller_change is not None:
+        sp_a = None if sp is None else np.asarray(sp, dtype=np.float64)
+        auto_a = None if auto is None else np.asarray(auto, dtype=bool)
+        change = latest_controller_change(pv, op, sp_a, ts, auto_a, p.controller_change)
+        if change is not None:
+            k = change.at
+            n_all = pv.size
+            pv, op = pv[k:], op[k:]
+            sp = None if sp_a is None else sp_a[k:]
+            auto = None if auto_a is None else auto_a[k:]
     win = check_window(pv, op, sp, auto, p.window)
     diag = DiagnosisDraft(
         loop_type=loop_type,
@@ -271,6 +291,9 @@ def _standard(
         oscillating=False,
         notes=list(win.notes),
     )
+    if change is not None:
+        diag.notes.insert(0, change_note(change, ts, n_all))
+        diag.controller_change = change_json(change, ts)
     diag.indices["hagglund_load_count"] = None
     diag.indices["idle_index"] = None
     diag.indices["saturation_fraction"] = win.indices.get("saturation_fraction")

@@ -273,6 +273,10 @@ class Diagnosis:
     tuning: Mapping[str, Any] | None = None
     """The identified process, present and proposed controller and the prediction for a
     tuning cause; why there is no proposal for a valve cause (contracts §2 ``tuning``)."""
+    controller_change: Mapping[str, Any] | None = None
+    """A retuning inside the window (``controller_change.py``): ``at_s`` (s from the window's
+    first sample), the PI settings ``before`` and ``after``; the window is judged from it on
+    (contracts §2 optional field)."""
 
     def with_notes_first(self, notes: Sequence[str]) -> Diagnosis:
         """The same diagnosis with ``notes`` before its own (the record's or the store's)."""
@@ -304,6 +308,11 @@ class Diagnosis:
             **({"evidence": json_safe(_plain(self.evidence))} if self.evidence is not None else {}),
             **({"kpis": json_safe(_plain(self.kpis))} if self.kpis is not None else {}),
             **({"tuning": json_safe(_plain(self.tuning))} if self.tuning is not None else {}),
+            **(
+                {"controller_change": json_safe(_plain(self.controller_change))}
+                if self.controller_change is not None
+                else {}
+            ),
         }
 
 
@@ -360,6 +369,7 @@ class DiagnosisDraft:
     evidence: list[dict[str, Any]] | None = None
     tuning: dict[str, Any] | None = None
     kpis: dict[str, Any] | None = None
+    controller_change: dict[str, Any] | None = None
 
     def freeze(self) -> Diagnosis:
         """The typed, frozen diagnosis of this draft."""
@@ -386,6 +396,7 @@ class DiagnosisDraft:
             evidence=tuple(self.evidence) if self.evidence is not None else None,
             tuning=self.tuning,
             kpis=self.kpis,
+            controller_change=self.controller_change,
         )
 
 

@@ -1,0 +1,252 @@
+"""Where a window's PI controller changed: a retuning applied inside the window.
+
+A loop retuned a few minutes ago has a window that is mostly the old tuning; judged whole, it
+keeps the old verdict for most of a window after the engineer applied the new setting (issue
+48: a proposal applied must turn the verdict within a few diagnosis periods). The chain judges
+such a window from the change on.
+
+Method: the velocity-form PI regression of ``tuning.identify_pi`` (ΔOP = a·e(k) + b·e(k−1) + c)
+fitted on both sides of every candidate split, a structural-break test in the manner of Chow
+(1960); the break's place by least squares (Bai 1997). Cumulative sums of the normal equations
+give every split's two fits in one pass. The best split is a change only when a PI controller
+explains both sides (R² at least ``min_fit``: not a manual stretch, a clamp or a historian's
+compression, where the regression is poor and nothing is cut) and the two sides' settings
+differ (the proportional or the integral gain by more than ``min_rel_change`` and by ``min_z``
+standard errors): one controller throughout gives the same settings on both sides whatever the
+split. Moves at a clamp (OP at the window's extremes) are left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ControllerChangeParams:
+    """Thresholds of the break test (dimensionless unless named)."""
+
+    min_fit: float = 0.9
+    """R² of the PI regression on each side: a controller acts there, in automatic."""
+    min_rel_change: float = 0.3
+    """Relative change of the proportional or the integral gain that counts as a retuning (a
+    DCS setting typed in, not the scatter of one estimate)."""
+    min_z: float = 10.0
+    """... and in standard errors of the difference: the regression's residuals are
+    correlated, so its standard errors are optimistic and the bar is high."""
+    min_side_samples: int = 200
+    """Samples on each side: fewer judge nothing (the chain needs a few cycles)."""
+    candidates: int = 200
+    """Splits tried per window (evenly spaced): the cost stays flat with the window's length."""
+
+
+@dataclass(frozen=True)
+class PISides:
+    """The PI settings on both sides of a change: Kc in % of OP per PV unit, Ti in s (None
+    where the regression's integral term has the wrong sign), R² of each side's fit."""
+
+    kc_before: float
+    ti_before_s: float | None
+    fit_before: float
+    kc_after: float
+    ti_after_s: float | None
+    fit_after: float
+
+
+@dataclass(frozen=True)
+class ControllerChange:
+    """A retuning inside the window: judged from sample ``at`` on."""
+
+    at: int
+    """First sample under the new settings."""
+    sides: PISides
+
+
+def _settings(coef: FloatArray, ts: float) -> tuple[FloatArray, FloatArray]:
+    """Kc and Ti (s, NaN where undefined) from the regression's a and b (rows of ``coef``)."""
+    a, b = coef[..., 0], coef[..., 1]
+    ki = a + b
+    kc = (a - b) / 2.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = np.where((ki != 0) & (kc * ki > 0), kc * ts / ki, np.nan)
+    return kc, ti
+
+
+def find_controller_change(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray | None,
+    ts: float,
+    auto: NDArray[np.bool_] | None = None,
+    params: ControllerChangeParams | None = None,
+) -> ControllerChange | None:
+    """The latest retuning inside the window, or None.
+
+    Parameters
+    ----------
+    pv, op, sp:
+        PV and SP in engineering units, OP in % (NaN marks a gap; ``sp`` None: constant).
+    ts:
+        Sample time, s.
+    auto:
+        True where the loop is in automatic (None: always): manual rows are left out.
+    """
+    p = params or ControllerChangeParams()
+    pv = np.asarray(pv, dtype=np.float64)
+    op = np.asarray(op, dtype=np.float64)
+    n = pv.size
+    if n < 2 * p.min_side_samples + 2 or not (np.isfinite(pv).any() and np.isfinite(op).any()):
+        return None
+    spv = np.full(n, np.nanmedian(pv)) if sp is None else np.asarray(sp, dtype=np.float64)
+    e = spv - pv
+    y = np.diff(op)
+    x = np.column_stack([e[1:], e[:-1], np.ones(n - 1)])
+    ok = np.isfinite(y) & np.all(np.isfinite(x), axis=1)
+    if auto is not None:
+        a = np.asarray(auto, dtype=bool)
+        ok &= a[1:] & a[:-1]
+    # OP held at a limit (0/100 % or a configured one: the window's extremes) is the clamp's,
+    # not the PI law's: those moves are left out
+    with np.errstate(invalid="ignore"):
+        clamped = (op <= np.nanmin(op) + 1e-9) | (op >= np.nanmax(op) - 1e-9)
+    ok &= ~(clamped[1:] | clamped[:-1])
+    x = np.where(ok[:, None], x, 0.0)
+    y = np.where(ok, y, 0.0)
+    # every prefix's normal equations: the right side's are the whole's minus the prefix's
+    sums = (
+        np.cumsum(x[:, :, None] * x[:, None, :], axis=0),
+        np.cumsum(x * y[:, None], axis=0),
+        np.cumsum(y * y),
+        np.cumsum(y),
+        np.cumsum(ok.astype(np.float64)),
+    )
+    lo, hi = p.min_side_samples, n - 1 - p.min_side_samples
+    coarse = np.unique(np.linspace(lo, hi, p.candidates).astype(np.int64))
+    best = _best_split(sums, coarse, ts, p)
+    if best is None:
+        return None
+    # every split between the best candidate's neighbours, to the sample
+    k = int(np.searchsorted(coarse, best[0]))
+    fine = np.arange(coarse[max(k - 1, 0)], coarse[min(k + 1, coarse.size - 1)] + 1)
+    row, sides = _best_split(sums, fine, ts, p) or best
+    # ΔOP row k is op[k+1] − op[k]: row m − 1 ends at the first output under the new settings
+    return ControllerChange(at=row, sides=sides)
+
+
+def _best_split(
+    sums: tuple[FloatArray, ...], m: NDArray[np.int64], ts: float, p: ControllerChangeParams
+) -> tuple[int, PISides] | None:
+    """Among the splits ``m`` (rows of ΔOP; the left side ends at row m − 2, the right starts
+    at row m) where both sides fit and their settings differ, the one of least residual; None
+    where none qualifies."""
+    # row m − 1 is left out of both: a positional PI's output jumps by ΔKc·e when its gain is
+    # typed in, a move neither setting makes (one such row took a sluggish loop's R² to 0.3)
+    left = tuple(t[m - 2] for t in sums)
+    right = tuple(t[-1] - t[m - 1] for t in sums)
+    fits, sses, coefs, covs = [], [], [], []
+    for sxx, sxy, syy, sy, sn in (left, right):
+        reg = sxx + 1e-12 * np.eye(3)  # a side of constant error: solvable, and a poor fit
+        coef = np.linalg.solve(reg, sxy[..., None])[..., 0]
+        sse = np.maximum(syy - np.einsum("ij,ij->i", coef, sxy), 0.0)
+        sst = syy - sy * sy / np.maximum(sn, 1.0)
+        # a side mostly in manual, clamped or in a gap judges nothing
+        valid = (sst > 0) & (sn >= p.min_side_samples / 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fits.append(np.where(valid, 1.0 - sse / sst, 0.0))
+        sses.append(sse)
+        coefs.append(coef)
+        covs.append(np.linalg.inv(reg) * (sse / np.maximum(sn - 3.0, 1.0))[:, None, None])
+    # the proportional gain Kc = (a − b)/2 and the integral gain Kc·Ts/Ti = a + b: a setting
+    # changed when one of them moved by min_rel_change and by min_z standard errors (a gain the
+    # window cannot pin down, an integral time far beyond the window, never reads as changed)
+    changed = np.zeros(m.size, dtype=bool)
+    for c in (np.array([0.5, -0.5, 0.0]), np.array([1.0, 1.0, 0.0])):
+        g0, g1 = coefs[0] @ c, coefs[1] @ c
+        var = np.einsum("i,nij,j->n", c, covs[0], c) + np.einsum("i,nij,j->n", c, covs[1], c)
+        with np.errstate(invalid="ignore"):
+            changed |= (np.abs(g1 - g0) > p.min_rel_change * np.maximum(np.abs(g0), np.abs(g1))) & (
+                np.abs(g1 - g0) > p.min_z * np.sqrt(var)
+            )
+    # a PI controller's two gains share their sign on each side
+    pi_both = np.ones(m.size, dtype=bool)
+    for coef in coefs:
+        pi_both &= (coef[:, 0] - coef[:, 1]) * (coef[:, 0] + coef[:, 1]) > 0
+    good = (fits[0] >= p.min_fit) & (fits[1] >= p.min_fit) & changed & pi_both
+    if not np.any(good):
+        return None
+    # the break's place by least squares (Bai 1997): the smallest residual of the two fits
+    i = int(np.argmin(np.where(good, sses[0] + sses[1], np.inf)))
+    kc0, ti0 = _settings(coefs[0][i], ts)
+    kc1, ti1 = _settings(coefs[1][i], ts)
+    sides = PISides(
+        kc_before=float(kc0),
+        ti_before_s=None if np.isnan(ti0) else float(ti0),
+        fit_before=float(fits[0][i]),
+        kc_after=float(kc1),
+        ti_after_s=None if np.isnan(ti1) else float(ti1),
+        fit_after=float(fits[1][i]),
+    )
+    return int(m[i]), sides
+
+
+def latest_controller_change(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray | None,
+    ts: float,
+    auto: NDArray[np.bool_] | None = None,
+    params: ControllerChangeParams | None = None,
+    max_changes: int = 3,
+) -> ControllerChange | None:
+    """The last of up to ``max_changes`` retunings (each searched for after the one before):
+    its ``at`` counts from the window's first sample."""
+    found: ControllerChange | None = None
+    offset = 0
+    for _ in range(max_changes):
+        sl = slice(offset, None)
+        nxt = find_controller_change(
+            pv[sl], op[sl], None if sp is None else sp[sl], ts,
+            None if auto is None else auto[sl], params,
+        )  # fmt: skip
+        if nxt is None:
+            break
+        offset += nxt.at
+        found = ControllerChange(at=offset, sides=nxt.sides)
+    return found
+
+
+def change_json(change: ControllerChange, ts: float) -> dict[str, object]:
+    """The diagnosis's optional ``controller_change``: when (s from the window's first
+    sample) and the settings on each side (Kc in % of OP per PV unit, Ti in s)."""
+    s = change.sides
+
+    def side(kc: float, ti: float | None, fit: float) -> dict[str, float | None]:
+        return {
+            "Kc": round(kc, 3),
+            "Ti_s": None if ti is None else round(ti, 1),
+            "fit": round(fit, 3),
+        }
+
+    return {
+        "at_s": round(change.at * ts, 1),
+        "before": side(s.kc_before, s.ti_before_s, s.fit_before),
+        "after": side(s.kc_after, s.ti_after_s, s.fit_after),
+    }
+
+
+def change_note(change: ControllerChange, ts: float, n: int) -> str:
+    """What the window's verdict is based on, in words."""
+    s = change.sides
+
+    def ti(v: float | None) -> str:
+        return "-" if v is None else f"{v:.3g}"
+
+    return (
+        f"the controller was retuned {change.at * ts:.0f} s into the window (Kc "
+        f"{s.kc_before:.3g} -> {s.kc_after:.3g} % per PV unit, Ti {ti(s.ti_before_s)} -> "
+        f"{ti(s.ti_after_s)} s): judged on the {(n - change.at) * ts:.0f} s since"
+    )
