@@ -84,7 +84,8 @@ def find_controller_change(
     auto: NDArray[np.bool_] | None = None,
     params: ControllerChangeParams | None = None,
 ) -> ControllerChange | None:
-    """The latest retuning inside the window, or None.
+    """The one retuning that best splits the window, or None (``latest_controller_change``
+    looks for more after it).
 
     Parameters
     ----------
