@@ -47,9 +47,10 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 ROOT_BEFORE = pytest.StashKey[set[str]]()
 
-HEARTBEAT_S = float(os.environ.get("PLANTCHECK_TEST_HEARTBEAT_S", "30"))
+HEARTBEAT_S = float(os.environ.get("PLANTCHECK_TEST_HEARTBEAT_S", "20"))
 """A test running longer than this says so, and again every as long (issue 47: silent stretches
-of minutes in `make test` looked like a hang)."""
+of minutes in `make test` looked like a hang; progress is due every 30 s, and at 30 a test that
+began just after the last line left a 30-s silence on a loaded machine)."""
 
 
 def _terminal_fd(config: pytest.Config) -> int | None:
