@@ -269,7 +269,9 @@ def demo_cmd(
     cause within about a minute)."""
     from plantcheck.service.config import load_config
 
-    configure_for_command("warning")
+    # the demo's terminal shows plantcheck's progress: a library's notices (asyncua's "Future
+    # for request id N is already done" when a reply crosses the stop) only at --log-level debug
+    configure_for_command("warning", libraries="error")
     _check_port("127.0.0.1", port, "choose another with --port")
     with contextlib.ExitStack() as stack:
         if data_dir is None:

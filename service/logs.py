@@ -76,9 +76,11 @@ class OneLineLibraryErrors(logging.Filter):
         return True
 
 
-def configure_logging(level: str, fmt: Literal["plain", "json"] = "plain") -> None:
-    """Configure the root logger once: ``level`` one of ``LEVELS``; libraries at WARNING
-    unless ``debug``."""
+def configure_logging(
+    level: str, fmt: Literal["plain", "json"] = "plain", libraries: str = "warning"
+) -> None:
+    """Configure the root logger once: ``level`` one of ``LEVELS``; libraries at
+    ``libraries`` (WARNING) or above unless ``debug``."""
     handler = logging.StreamHandler()
     handler.setFormatter(JsonFormatter() if fmt == "json" else logging.Formatter(PLAIN))
     if level != "debug":
@@ -88,7 +90,7 @@ def configure_logging(level: str, fmt: Literal["plain", "json"] = "plain") -> No
         root.removeHandler(old)
     root.addHandler(handler)
     root.setLevel(level.upper())
-    library_level = logging.DEBUG if level == "debug" else logging.WARNING
+    library_level = logging.DEBUG if level == "debug" else getattr(logging, libraries.upper())
     for name in QUIET_LIBRARIES:
         logging.getLogger(name).setLevel(max(library_level, root.level))
 
@@ -104,10 +106,11 @@ def _current_context() -> click.Context | None:
     return ctx if ctx is not None else click.get_current_context(silent=True)
 
 
-def configure_for_command(default_level: str) -> None:
-    """Logging for the running command: the root command's options, else ``default_level``."""
+def configure_for_command(default_level: str, libraries: str = "warning") -> None:
+    """Logging for the running command: the root command's options, else ``default_level``;
+    the libraries at ``libraries`` or above (``configure_logging``)."""
     ctx = _current_context()
     opts = ctx.find_root().obj if ctx is not None else None
     if not isinstance(opts, LogOptions):
         opts = LogOptions()
-    configure_logging(opts.level or default_level, opts.fmt)
+    configure_logging(opts.level or default_level, opts.fmt, libraries)

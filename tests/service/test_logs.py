@@ -32,6 +32,21 @@ def test_libraries_stay_at_warning_unless_debug() -> None:
     assert logging.getLogger("pymodbus").getEffectiveLevel() == logging.ERROR
 
 
+def test_the_demo_keeps_library_warnings_off_its_terminal(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A loaded demo printed asyncua's "Future for request id 120 is already done" at its
+    stop (a reply that crossed the session's close); the demo's terminal shows plantcheck's
+    progress, so its libraries log errors only (issue 47 item 6), and everything at debug."""
+    configure_logging("warning", libraries="error")
+    logging.getLogger("asyncua.client.ua_client").warning("Future for request id 120 is done")
+    logging.getLogger("plantcheck.service").warning("ours")
+    err = capsys.readouterr().err
+    assert "asyncua" not in err and "ours" in err
+    configure_logging("debug", libraries="error")
+    assert logging.getLogger("asyncua").getEffectiveLevel() == logging.DEBUG
+
+
 def test_json_lines(capsys: pytest.CaptureFixture[str]) -> None:
     configure_logging("info", "json")
     logging.getLogger("plantcheck.test").warning("source %s down", "plc1")
