@@ -276,7 +276,6 @@ def _standard(
         change = latest_controller_change(pv, op, sp_a, ts, auto_a, p.controller_change)
         if change is not None:
             k = change.at
-            n_all = pv.size
             pv, op = pv[k:], op[k:]
             sp = None if sp_a is None else sp_a[k:]
             auto = None if auto_a is None else auto_a[k:]
@@ -292,7 +291,7 @@ def _standard(
         notes=list(win.notes),
     )
     if change is not None:
-        diag.notes.insert(0, change_note(change, ts, n_all))
+        diag.notes.insert(0, change_note(change, ts, pv.size))
         diag.controller_change = change_json(change, ts)
     diag.indices["hagglund_load_count"] = None
     diag.indices["idle_index"] = None

@@ -150,8 +150,10 @@ def _best_split(
     right = tuple(t[-1] - t[m - 1] for t in sums)
     fits, sses, coefs, covs = [], [], [], []
     for sxx, sxy, syy, sy, sn in (left, right):
-        reg = sxx + 1e-12 * np.eye(3)  # a side of constant error: solvable, and a poor fit
-        coef = np.linalg.solve(reg, sxy[..., None])[..., 0]
+        # a side of constant error: invertible, and a poor fit; the inverse serves the
+        # coefficients and their covariance
+        inv = np.linalg.inv(sxx + 1e-12 * np.eye(3))
+        coef = np.einsum("nij,nj->ni", inv, sxy)
         sse = np.maximum(syy - np.einsum("ij,ij->i", coef, sxy), 0.0)
         sst = syy - sy * sy / np.maximum(sn, 1.0)
         # a side mostly in manual, clamped or in a gap judges nothing
@@ -160,7 +162,7 @@ def _best_split(
             fits.append(np.where(valid, 1.0 - sse / sst, 0.0))
         sses.append(sse)
         coefs.append(coef)
-        covs.append(np.linalg.inv(reg) * (sse / np.maximum(sn - 3.0, 1.0))[:, None, None])
+        covs.append(inv * (sse / np.maximum(sn - 3.0, 1.0))[:, None, None])
     # the proportional gain Kc = (a − b)/2 and the integral gain Kc·Ts/Ti = a + b: a setting
     # changed when one of them moved by min_rel_change and by min_z standard errors (a gain the
     # window cannot pin down, an integral time far beyond the window, never reads as changed)
@@ -172,23 +174,20 @@ def _best_split(
             changed |= (np.abs(g1 - g0) > p.min_rel_change * np.maximum(np.abs(g0), np.abs(g1))) & (
                 np.abs(g1 - g0) > p.min_z * np.sqrt(var)
             )
-    # a PI controller's two gains share their sign on each side
-    pi_both = np.ones(m.size, dtype=bool)
-    for coef in coefs:
-        pi_both &= (coef[:, 0] - coef[:, 1]) * (coef[:, 0] + coef[:, 1]) > 0
+    # a PI controller's two gains share their sign on each side (Ti defined)
+    (kc0, ti0), (kc1, ti1) = _settings(coefs[0], ts), _settings(coefs[1], ts)
+    pi_both = np.isfinite(ti0) & np.isfinite(ti1)
     good = (fits[0] >= p.min_fit) & (fits[1] >= p.min_fit) & changed & pi_both
     if not np.any(good):
         return None
     # the break's place by least squares (Bai 1997): the smallest residual of the two fits
     i = int(np.argmin(np.where(good, sses[0] + sses[1], np.inf)))
-    kc0, ti0 = _settings(coefs[0][i], ts)
-    kc1, ti1 = _settings(coefs[1][i], ts)
     sides = PISides(
-        kc_before=float(kc0),
-        ti_before_s=None if np.isnan(ti0) else float(ti0),
+        kc_before=float(kc0[i]),
+        ti_before_s=float(ti0[i]),
         fit_before=float(fits[0][i]),
-        kc_after=float(kc1),
-        ti_after_s=None if np.isnan(ti1) else float(ti1),
+        kc_after=float(kc1[i]),
+        ti_after_s=float(ti1[i]),
         fit_after=float(fits[1][i]),
     )
     return int(m[i]), sides
@@ -239,8 +238,9 @@ def change_json(change: ControllerChange, ts: float) -> dict[str, object]:
     }
 
 
-def change_note(change: ControllerChange, ts: float, n: int) -> str:
-    """What the window's verdict is based on, in words."""
+def change_note(change: ControllerChange, ts: float, judged: int) -> str:
+    """What the window's verdict is based on, in words (``judged``: samples since the
+    change)."""
     s = change.sides
 
     def ti(v: float | None) -> str:
@@ -249,5 +249,5 @@ def change_note(change: ControllerChange, ts: float, n: int) -> str:
     return (
         f"the controller was retuned {change.at * ts:.0f} s into the window (Kc "
         f"{s.kc_before:.3g} -> {s.kc_after:.3g} % per PV unit, Ti {ti(s.ti_before_s)} -> "
-        f"{ti(s.ti_after_s)} s): judged on the {(n - change.at) * ts:.0f} s since"
+        f"{ti(s.ti_after_s)} s): judged on the {judged * ts:.0f} s since"
     )
