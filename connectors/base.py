@@ -252,7 +252,9 @@ class DeviceConnector(ABC):
         seen not listening during this wait, listens again (the server is back: True)."""
         end = time.monotonic() + wait_s
         addr = self.endpoint()
-        was_down = False
+        # probed at once: a server back within the first probe interval was otherwise first
+        # seen listening, never seen down, and the whole back-off was waited out
+        was_down = addr is not None and not await listening(*addr)
         while not self._stop.is_set():
             left = end - time.monotonic()
             if left <= 0:
@@ -262,6 +264,9 @@ class DeviceConnector(ABC):
             if addr is not None and not self._stop.is_set():
                 up = await listening(*addr)
                 if up and was_down:
+                    # when the service reacted, apart from what the server then takes to
+                    # serve a session (the fault suite times both)
+                    log.info("%s: %s:%d listens again: trying now", self.name, *addr)
                     return True
                 was_down = was_down or not up
         return False
