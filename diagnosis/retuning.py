@@ -150,24 +150,38 @@ def sensitivity(
 
 def _respond(model: ProcessModel, c: PISetting, dt: float, steps: int, load: float) -> np.ndarray:
     """PV of the closed loop (model + controller, sampled every ``dt``) after a unit
-    set-point step (``load`` 0) or a load step of ``load`` % of OP at the process input."""
+    set-point step (``load`` 0) or a load step of ``load`` % of OP at the process input.
+
+    The loop at step k: e = SP − y, I += ki·e, v = kc·e + I + load, and the process answers
+    v of d steps ago, y ← a·y + b·v(k − d). Its state s = (y, I, v(k−1) … v(k−d), 1) moves by
+    one matrix, s(k+1) = A·s(k), so the response is the first row of A^k·s(0), k < ``steps``:
+    the powers are taken by doubling (log2(steps) matrix products instead of a step-by-step
+    loop; a loop past its stability limit overflows to inf, which ``_stable`` reads)."""
     K = float(model.K or 0.0)
     tau = float(model.tau_s or 0.0)
-    a = math.exp(-dt / tau) if model.kind == "fopdt" and tau > 0 else 0.0
+    if model.kind == "ipdt":
+        a, b = 1.0, K * dt
+    else:
+        a = math.exp(-dt / tau) if tau > 0 else 0.0
+        b = (1.0 - a) * K
     d = round(float(model.theta_s or 0.0) / dt) + 1
     sp = 0.0 if load else 1.0
     kc, ki = c.Kc, c.Kc * dt / c.Ti_s
-    u_hist = [0.0] * d
-    y = integral = 0.0
-    out = np.empty(steps)
-    for k in range(steps):
-        out[k] = y
-        e = sp - y
-        integral += ki * e
-        u_hist.append(kc * e + integral + load)
-        u = u_hist[-1 - d]
-        y = y + K * u * dt if model.kind == "ipdt" else a * y + (1.0 - a) * K * u
-    return out
+    n = d + 3  # y, I, v(k-1) ... v(k-d), the constant 1
+    A = np.zeros((n, n))
+    A[0, 0], A[0, d + 1] = a, b
+    A[1, 0], A[1, 1], A[1, -1] = -ki, 1.0, ki * sp
+    A[2, 0], A[2, 1], A[2, -1] = -(kc + ki), 1.0, (kc + ki) * sp + load
+    A[np.arange(3, d + 2), np.arange(2, d + 1)] = 1.0
+    A[-1, -1] = 1.0
+    states = np.zeros((n, 1))
+    states[-1, 0] = 1.0
+    power = A
+    with np.errstate(over="ignore", invalid="ignore"):
+        while states.shape[1] < steps:
+            states = np.concatenate([states, power @ states], axis=1)
+            power = power @ power
+    return np.asarray(states[0, :steps])
 
 
 def predict(model: ProcessModel, c: PISetting, ts: float, params: RetuneParams) -> Prediction:

@@ -69,6 +69,58 @@ def test_simc_on_the_true_model_has_the_textbook_margins() -> None:
     assert level.tau_c_s == pytest.approx(15.0) and level.Ti_s == pytest.approx(80.0)
 
 
+def _loop_step_by_step(
+    model: ProcessModel, c: PISetting, dt: float, n: int, load: float
+) -> np.ndarray:
+    """The closed loop written as a control system runs it, one sample after the other."""
+    K, d = float(model.K or 0.0), round(float(model.theta_s or 0.0) / dt) + 1
+    a = 1.0 if model.kind == "ipdt" else float(np.exp(-dt / float(model.tau_s or 1.0)))
+    b = K * dt if model.kind == "ipdt" else (1.0 - a) * K
+    sp, ki = (0.0 if load else 1.0), c.Kc * dt / c.Ti_s
+    y = integral = 0.0
+    v = [0.0] * d
+    out = []
+    for _ in range(n):
+        out.append(y)
+        integral += ki * (sp - y)
+        v.append(c.Kc * (sp - y) + integral + load)
+        y = a * y + b * v[-1 - d]
+    return np.array(out)
+
+
+@pytest.mark.parametrize(
+    ("model", "setting", "dt", "load"),
+    [
+        (
+            ProcessModel(kind="fopdt", K=2.0, tau_s=50.0, theta_s=10.0),
+            PISetting(0.6, 50.0),
+            1.0,
+            0.0,
+        ),
+        (
+            ProcessModel(kind="fopdt", K=-1.5, tau_s=8.0, theta_s=2.3),
+            PISetting(-3.0, 8.0),
+            0.7,
+            0.5,
+        ),
+        (ProcessModel(kind="ipdt", K=0.02, theta_s=4.0), PISetting(5.0, 60.0), 2.0, 0.4),
+        (ProcessModel(kind="fopdt", K=1.5, tau_s=8.0, theta_s=2.0), PISetting(5.0, 3.0), 1.0, 0.0),
+    ],
+)
+def test_the_predicted_response_is_the_loop_run_sample_by_sample(
+    model: ProcessModel, setting: PISetting, dt: float, load: float
+) -> None:
+    """The response computed by matrix powers is the loop run one sample at a time, also for
+    a setting past the stability limit (the last case grows without bound)."""
+    from plantcheck.diagnosis.retuning import _respond
+
+    fast = _respond(model, setting, dt, 300, load)
+    slow = _loop_step_by_step(model, setting, dt, 300, load)
+    finite = np.isfinite(slow) & (np.abs(slow) < 1e12)
+    assert np.allclose(fast[finite], slow[finite], rtol=1e-9, atol=1e-9)
+    assert finite.all() or not np.all(np.isfinite(fast)) or np.abs(fast).max() > 1e12
+
+
 def test_the_margins_plot_peaks_at_ms() -> None:
     """|S(jω)| of the plot: small at low frequency (integral action), 1 towards Nyquist, and
     its peak the Ms of the margins (within the plot's 60 points)."""
