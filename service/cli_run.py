@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_common import fail, parse_host_port
 from plantcheck.service.cli_store import ConfigOpt, _config, migrate_or_fail
 from plantcheck.service.logs import configure_for_command
 
@@ -263,6 +263,14 @@ def demo_cmd(
     duration: Annotated[
         float | None, typer.Option(help="Stop after this many seconds (default: at Ctrl-C).")
     ] = None,
+    admin: Annotated[
+        str,
+        typer.Option(
+            metavar="HOST:PORT|off",
+            help="Serve the simulator's admin commands here, e.g. 127.0.0.1:5021: faults, and "
+            "'tune LOOP KC TI_S' to apply a retuning proposal (simulator/README.md).",
+        ),
+    ] = "off",
 ) -> None:
     """Demo: the bundled 11-loop plant simulated at high speed, ingested over OPC UA and
     diagnosed by the service on SQLite; open http://127.0.0.1:PORT/ (every loop shows its
@@ -273,6 +281,12 @@ def demo_cmd(
     # for request id N is already done" when a reply crosses the stop) only at --log-level debug
     configure_for_command("warning", libraries="error")
     _check_port("127.0.0.1", port, "choose another with --port")
+    if admin != "off":
+        try:
+            admin_host, admin_port = parse_host_port(admin)
+        except ValueError as exc:
+            raise fail(f"--admin: {exc} (or 'off')") from None
+        _check_port(admin_host, admin_port, "choose another with --admin")
     with contextlib.ExitStack() as stack:
         if data_dir is None:
             data_dir = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="plantcheck-")))
@@ -301,7 +315,7 @@ def demo_cmd(
                 "--modbus",
                 "off",
                 "--admin",
-                "off",
+                admin,
                 "--speed",
                 f"{speed:g}",
                 "--quiet",
@@ -310,8 +324,9 @@ def demo_cmd(
         )
         stack.callback(_stop_process, sim)
         _wait_for_port(sim, opcua_port)
+        commands = "" if admin == "off" else f"; admin commands on {admin}"
         typer.echo(
-            f"plantcheck demo: simulator at {speed:g}x on {opcua_url}; configuration "
+            f"plantcheck demo: simulator at {speed:g}x on {opcua_url}{commands}; configuration "
             f"{cfg_path}; open http://127.0.0.1:{port}/",
             err=True,
         )

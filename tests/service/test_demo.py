@@ -4,11 +4,14 @@ register -> ingestion -> scheduler -> store -> REST API; every loop must show it
 
 from __future__ import annotations
 
+import asyncio
 import re
 import subprocess
 import sys
 import time
+from datetime import datetime
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -72,14 +75,15 @@ def _stop(*procs: subprocess.Popen[bytes]) -> str:
 
 @pytest.mark.slow
 def test_demo_shows_every_loop_with_its_true_cause(tmp_path: Path) -> None:
-    port = free_port()
+    port, admin = free_port(), free_port()
     proc = _cli(
         "demo", "--port", str(port), "--data-dir", str(tmp_path),
-        "--duration", str(DEADLINE_S + 60),
+        "--admin", f"127.0.0.1:{admin}", "--duration", str(2 * DEADLINE_S + 60),
     )  # fmt: skip
     try:
         _watch_true_causes(proc, port)
         _watch_plant_oscillation(port, tmp_path)
+        _apply_proposals_and_watch(port, admin)
     finally:
         err = _stop(proc)
     # the demo's terminal shows plantcheck's progress, not the protocol library's notices
@@ -110,6 +114,62 @@ def _watch_plant_oscillation(port: int, tmp_path: Path) -> None:
     rows = re.findall(r'<tr class="oscillation-group" data-source="(\w*)">', dom)
     assert rows == ["FIC801"], dom[-3000:]
     assert "FIC801: its valve (cause stiction" in dom
+
+
+RETUNED = ("PIC301", "TIC401")
+"""The demo's aggressive and its sluggish loop (issue 48)."""
+
+
+def _loop(port: int, name: str) -> dict[str, Any]:
+    return dict(httpx.get(f"http://127.0.0.1:{port}/api/v1/loops/{name}", timeout=5).json())
+
+
+def _apply_proposals_and_watch(port: int, admin: int) -> None:
+    """Issue 48: the service proposes a PI setting for the aggressive and the sluggish loop;
+    typed into the simulator as the page gives it in the control system's form (the admin
+    command ``tune``, the gain in % of travel per % of span), both loops read ``ok`` within
+    three diagnosis periods (30 s): the chain judges a window from the retuning on
+    (``diagnosis/controller_change.py``) and two agreeing diagnoses confirm it."""
+    from plantcheck.simulator.faults import send_admin
+
+    settings: dict[str, dict[str, Any]] = {}
+    t0 = time.monotonic()
+    while len(settings) < len(RETUNED) and time.monotonic() - t0 < 3 * DEMO_PERIOD_S:
+        for name in RETUNED:
+            tuning = _loop(port, name)["diagnosis"].get("tuning") or {}
+            if tuning.get("dcs"):
+                settings[name] = tuning
+        time.sleep(1)
+    assert len(settings) == len(RETUNED), {n: _loop(port, n)["diagnosis"] for n in RETUNED}
+    tuned_at = time.time()
+    for name, tuning in settings.items():
+        dcs = tuning["dcs"]
+        assert (dcs["gain_unit"], dcs["integral_unit"]) == ("% OP per % of span", "s"), dcs
+        gain = dcs["gain"] if dcs["action"] == "reverse" else -dcs["gain"]
+        reply = asyncio.run(send_admin("127.0.0.1", admin, f"tune {name} {gain} {dcs['integral']}"))
+        assert reply.startswith("ok tune"), reply
+    print(f"proposals applied: { {n: t['dcs'] for n, t in settings.items()} }")
+    causes: dict[str, list[str]] = {}
+    # three periods, and what a loaded machine's scheduler may run late
+    while time.time() - tuned_at < 3 * DEMO_PERIOD_S + 10:
+        time.sleep(1)
+        for name in RETUNED:
+            rows = httpx.get(
+                f"http://127.0.0.1:{port}/api/v1/loops/{name}/diagnoses",
+                params={"limit": 10}, timeout=5,
+            ).json()  # fmt: skip
+            causes[name] = [r["cause"] for r in rows if _epoch(r["created_at"]) > tuned_at][::-1]
+        if all(_loop(port, name)["cause"] == "ok" for name in RETUNED):
+            break
+    else:
+        pytest.fail(f"the loops' diagnoses since the retuning: {causes}")
+    print(f"both ok {time.time() - tuned_at:.0f} s after the retuning: {causes}")
+    notes = _loop(port, "TIC401")["diagnosis"]["notes"]
+    assert notes[0].startswith("the controller was retuned"), notes
+
+
+def _epoch(iso: str) -> float:
+    return datetime.fromisoformat(iso.replace("Z", "+00:00")).timestamp()
 
 
 @pytest.mark.slow
