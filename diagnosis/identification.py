@@ -40,6 +40,7 @@ from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     block_means,
     first_order_lags,
+    log_grid,
     noise_sigma,
 )
 
@@ -230,9 +231,7 @@ def _coarse(
     cspan = sum(s.stop - s.start for s in cseg)
     max_d = int(min(p.max_dead_time_samples / b, max(1, p.max_dead_time_share * cspan)))
     taus = (
-        np.array([0.0])
-        if integrating
-        else np.geomspace(0.3, max(2.0, cspan / 3.0), p.time_constants)
+        np.array([0.0]) if integrating else log_grid(0.3, max(2.0, cspan / 3.0), p.time_constants)
     )
     coarse_d = _coarse_delays(max_d)
     pv_b, op_b = block_means(pv, b), block_means(op, b)
@@ -254,7 +253,7 @@ def _coarse_delays(max_d: int, points: int = 32) -> NDArray[np.int64]:
     dense = np.arange(min(max_d, 12) + 1)
     if max_d <= 12:
         return dense.astype(np.int64)
-    wide = np.geomspace(13, max_d, points - dense.size)
+    wide = log_grid(13, max_d, points - dense.size)
     return np.unique(np.concatenate([dense, np.round(wide)])).astype(np.int64)
 
 
@@ -273,7 +272,7 @@ def _search(
     fine_d = np.unique(
         np.round(np.linspace(max(0, d0 - width), d0 + width, min(2 * width + 1, 17)))
     ).astype(np.int64)
-    taus = np.array([0.0]) if integrating else tau0 * np.geomspace(0.6, 1.6, 7)
+    taus = np.array([0.0]) if integrating else tau0 * log_grid(0.6, 1.6, 7)
     sse, _ = _sse_grid(pv, _regressors(op, taus, integrating, ts), fine_d, segments)
     i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
     tau1, d1 = float(taus[i]), int(fine_d[j])
@@ -287,7 +286,7 @@ def _search(
         sse_f, _ = _sse_grid(pv, xf, near_d, segments)  # (fraction, delay)
         f, j = np.unravel_index(int(np.argmin(sse_f)), sse_f.shape)
         frac, d2 = FRACTIONS[f], int(near_d[j])
-        near_taus = np.array([0.0]) if integrating else tau1 * np.geomspace(0.85, 1.18, 7)
+        near_taus = np.array([0.0]) if integrating else tau1 * log_grid(0.85, 1.18, 7)
         xt = _fractional(_regressors(op, near_taus, integrating, ts), frac)
         sse_t, gain = _sse_grid(pv, xt, np.array([d2]), segments)
         k = int(np.argmin(sse_t[:, 0]))

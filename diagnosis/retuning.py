@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from plantcheck.diagnosis.identification import ProcessModel
+from plantcheck.diagnosis.signal_tools import log_grid
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,7 @@ def _loop(model: ProcessModel, c: PISetting, w: np.ndarray, ts: float) -> np.nda
 def robustness(model: ProcessModel, c: PISetting, ts: float) -> Robustness:
     """Gain and phase margins and Ms of the loop (model and controller)."""
     scale = float(model.tau_s or 0.0) + float(model.theta_s or 0.0) + c.Ti_s
-    w = np.geomspace(1e-3 / scale, math.pi / ts, 800)
+    w = log_grid(1e-3 / scale, math.pi / ts, 800)
     L = _loop(model, c, w, ts)
     ms = float(np.max(1.0 / np.abs(1.0 + L)))
     phase = np.unwrap(np.angle(L))
@@ -144,7 +145,7 @@ def sensitivity(
     frequency: the margins plot; its peak is Ms, and |S| > 1 where the loop amplifies a
     disturbance instead of rejecting it (Åström & Hägglund 2006, section 4.4)."""
     scale = float(model.tau_s or 0.0) + float(model.theta_s or 0.0) + c.Ti_s
-    w = np.geomspace(1e-2 / scale, math.pi / ts, points)
+    w = log_grid(1e-2 / scale, math.pi / ts, points)
     return w, np.abs(1.0 / (1.0 + _loop(model, c, w, ts)))
 
 

@@ -28,7 +28,7 @@ from plantcheck.diagnosis.retuning import (
     propose,
     sensitivity,
 )
-from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.signal_tools import FloatArray, round_significant
 from plantcheck.diagnosis.tuning import PIEstimate
 from plantcheck.diagnosis.valve_kpis import VALVE_STATES
 
@@ -78,9 +78,9 @@ def valve_first(cause: str) -> TuningOut:
 def _plot(pred: Prediction) -> dict[str, list[float]]:
     idx = np.linspace(0, pred.t_s.size - 1, PLOT_POINTS).round().astype(np.int64)
     return {
-        "t_s": [float(f"{v:.4g}") for v in pred.t_s[idx]],
-        "sp": [round(float(v), 4) for v in pred.pv_sp[idx]],
-        "load": [round(float(v), 4) for v in pred.pv_load[idx]],
+        "t_s": round_significant(pred.t_s[idx], 4),
+        "sp": _decimals(pred.pv_sp[idx]),
+        "load": _decimals(pred.pv_load[idx]),
     }
 
 
@@ -94,7 +94,12 @@ def _margins(rob: Robustness) -> dict[str, float | None]:
 
 def _sensitivity(model: ProcessModel, c: PISetting, ts: float) -> dict[str, list[float]]:
     w, mag = sensitivity(model, c, ts)
-    return {"w_rad_s": [float(f"{v:.4g}") for v in w], "mag": [round(float(v), 4) for v in mag]}
+    return {"w_rad_s": round_significant(w, 4), "mag": _decimals(mag)}
+
+
+def _decimals(x: FloatArray) -> list[float]:
+    """A plot's values to 4 decimals, for JSON."""
+    return [float(v) for v in np.round(x, 4)]
 
 
 def _predicted(prop: Proposal, model: ProcessModel, ts: float) -> dict[str, Any] | None:

@@ -13,7 +13,9 @@ from plantcheck.diagnosis.signal_tools import (
     first_order_recursion,
     first_peaks,
     half_cycles,
+    log_grid,
     noise_sigma,
+    round_significant,
     zero_crossings,
 )
 
@@ -106,3 +108,17 @@ def test_fast_fft_length_is_the_next_5_smooth_number() -> None:
     from scipy.fft import next_fast_len
 
     assert all(fast_fft_length(n) == next_fast_len(n, real=True) for n in range(1, 5000))
+
+
+def test_log_grid_is_geomspace() -> None:
+    """The identification's and the margins' grids: np.geomspace's points, to rounding."""
+    for start, stop, num in ((0.6, 1.6, 7), (1e-5, np.pi, 800), (13, 600, 19), (2.0, 2.0, 1)):
+        assert np.allclose(log_grid(start, stop, num), np.geomspace(start, stop, num), rtol=1e-14)
+
+
+def test_round_significant_is_the_formatted_value() -> None:
+    """A plot's times and frequencies rounded in one pass are what formatting each one to 4
+    significant digits gives, zero and negative values included."""
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.lognormal(0, 5, 5000) * rng.choice([-1, 1], 5000), [0.0, 12345.678]])
+    assert round_significant(x, 4) == [float(f"{v:.4g}") for v in x]

@@ -50,12 +50,13 @@ def test_every_fault_is_marked_and_nothing_is_lost_outside_them(tmp_path: Path) 
                 for p, lag in lags.items():
                     assert lag is not None and tries[p] is not None, (p, lags, tries)
                     assert tries[p] <= 3.0, (p, lags, tries)
-        # data flows again after the last fault, on both protocols
+        # data flows again after the last fault, on both protocols: as fresh as this machine
+        # managed before the faults (a fixed 3 s kept a loaded run waiting the whole minute)
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline:
             accounts = {p: d.account(p) for p in LOOPS}
             if all(
-                a.newest_us and time.time() - a.newest_us / 1e6 < 3.0 for a in accounts.values()
+                a.newest_us and time.time() - a.newest_us / 1e6 < fresh_s for a in accounts.values()
             ):
                 break
             time.sleep(1.0)
