@@ -58,7 +58,10 @@ class RetuneParams:
     horizon_settling: float = 12.0
     """The predicted responses run this many times (τ + θ + Ti) long."""
     steps: int = 300
-    """Samples of each predicted response."""
+    """Samples of each predicted response at least ..."""
+    max_steps: int = 4096
+    """... and at most: as many as a quarter of the dead time (or of the sample time, when
+    longer) takes over the horizon."""
 
 
 @dataclass(frozen=True)
@@ -188,17 +191,23 @@ def _respond(model: ProcessModel, c: PISetting, dt: float, steps: int, load: flo
 def predict(model: ProcessModel, c: PISetting, ts: float, params: RetuneParams) -> Prediction:
     """The model's closed loop under ``c``: responses, IAE and margins."""
     slow = float(model.tau_s or 0.0) + float(model.theta_s or 0.0) + c.Ti_s
-    dt = max(params.horizon_settling * slow / params.steps, ts / 4.0)
+    horizon = params.horizon_settling * slow
+    # the step must resolve the dead time: a lag-dominant loop (τ 47 s, θ 2.5 s) simulated
+    # every 3.9 s had its dead time rounded up to 7.8 s and a robust setting (gain margin
+    # 2.8) predicted unstable
+    fine = max(float(model.theta_s or 0.0), ts) / 4.0
+    dt = max(min(horizon / params.steps, fine), horizon / params.max_steps)
+    steps = math.ceil(horizon / dt)
     K = float(model.K or 1.0)
     # a load that would move an open-loop PV by one unit (an integrator: within τ + θ + Ti)
     load = 1.0 / (abs(K) * (slow if model.kind == "ipdt" else 1.0)) * math.copysign(1.0, K)
-    pv_sp = _respond(model, c, dt, params.steps, 0.0)
-    pv_load = _respond(model, c, dt, params.steps, load)
+    pv_sp = _respond(model, c, dt, steps, 0.0)
+    pv_load = _respond(model, c, dt, steps, load)
     return Prediction(
         iae_sp=float(np.sum(np.abs(1.0 - pv_sp)) * dt),
         iae_load=float(np.sum(np.abs(pv_load)) * dt),
         robustness=robustness(model, c, ts),
-        t_s=np.arange(params.steps) * dt,
+        t_s=np.arange(steps) * dt,
         pv_sp=pv_sp,
         pv_load=pv_load,
     )

@@ -198,3 +198,16 @@ def test_the_chain_gives_a_sluggish_loop_a_setting_in_its_controller_form() -> N
     assert t["dcs"]["integral"] == pytest.approx(t["proposed"]["Ti_s"] / 60.0, rel=0.01)
     text = d["actions"][0]["text"]
     assert text.startswith("Retune the controller more aggressively") and "PB " in text, text
+
+
+def test_a_robust_lag_dominant_loop_is_predicted_to_settle() -> None:
+    """τ 47 s, θ 2.5 s under a PI with a gain margin of 2.8: simulated every 3.9 s (the
+    horizon over 300 steps), the dead time rounded up to 7.8 s and the loop read as unstable;
+    the prediction now steps a quarter of the dead time."""
+    from plantcheck.diagnosis.retuning import _stable
+
+    model = ProcessModel(kind="fopdt", K=-2.68, tau_s=47.0, theta_s=2.5)
+    pred = predict(model, PISetting(-2.67, 47.9), 2.5, RetuneParams())
+    assert pred.robustness.gain_margin == pytest.approx(2.79, abs=0.05)
+    assert _stable(pred) and abs(pred.pv_sp[-1] - 1.0) < 1e-3
+    assert pred.t_s[1] <= 2.5 / 4.0 + 1e-9 and pred.t_s[-1] >= 12.0 * (47.0 + 2.5 + 47.9) - 1
