@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.tuning import pi_settings
 
 
 @dataclass(frozen=True)
@@ -64,16 +65,6 @@ class ControllerChange:
     at: int
     """First sample under the new settings."""
     sides: PISides
-
-
-def _settings(coef: FloatArray, ts: float) -> tuple[FloatArray, FloatArray]:
-    """Kc and Ti (s, NaN where undefined) from the regression's a and b (rows of ``coef``)."""
-    a, b = coef[..., 0], coef[..., 1]
-    ki = a + b
-    kc = (a - b) / 2.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ti = np.where((ki != 0) & (kc * ki > 0), kc * ts / ki, np.nan)
-    return kc, ti
 
 
 def find_controller_change(
@@ -175,7 +166,7 @@ def _best_split(
                 np.abs(g1 - g0) > p.min_z * np.sqrt(var)
             )
     # a PI controller's two gains share their sign on each side (Ti defined)
-    (kc0, ti0), (kc1, ti1) = _settings(coefs[0], ts), _settings(coefs[1], ts)
+    (kc0, ti0), (kc1, ti1) = pi_settings(coefs[0], ts), pi_settings(coefs[1], ts)
     pi_both = np.isfinite(ti0) & np.isfinite(ti1)
     good = (fits[0] >= p.min_fit) & (fits[1] >= p.min_fit) & changed & pi_both
     if not np.any(good):

@@ -405,13 +405,10 @@ def _gain_spread(pv: FloatArray, x: FloatArray, segments: list[slice]) -> float 
     Tibshirani 1993), and the proposal then takes the model at its cautious edge."""
     gains = []
     for s in segments:
-        xs, ys = x[s], pv[s]
-        if xs.size < 10 or np.ptp(xs) <= 0:
+        if s.stop - s.start < 10 or np.ptp(x[s]) <= 0:
             continue
-        t = np.arange(xs.size, dtype=np.float64)
-        a = np.column_stack([xs, np.ones(xs.size), t])
-        coef, *_ = np.linalg.lstsq(a, ys, rcond=None)
-        gains.append(float(coef[0]))
+        _, gain = _sse_grid(pv, x[None, :], np.zeros(1, dtype=np.int64), [s])
+        gains.append(float(gain[0, 0]))
     if len(gains) < 2:
         return None
     return float(np.std(gains, ddof=1) / math.sqrt(len(gains)))

@@ -141,14 +141,26 @@ def _identify_pi(op: FloatArray, pv: FloatArray, sp: FloatArray, ts: float) -> P
     resid = d_op - reg @ coef
     var = float(np.var(d_op))
     fit = 1.0 - float(np.var(resid)) / var if var > 0 else 0.0
-    a, b = float(coef[0]), float(coef[1])
-    ki = a + b
-    kc = (a - b) / 2.0
-    ti = kc * ts / ki if ki != 0 and kc * ki > 0 else None
+    kc_a, ti_a = pi_settings(np.asarray(coef, dtype=np.float64), ts)
+    kc, ki = float(kc_a), float(coef[0] + coef[1])
+    ti = float(ti_a) if np.isfinite(ti_a) else None
     if ti is None and ki != 0:
         # Integral action alone still gives the controller direction: ΔOP ∝ e.
         kc = math.copysign(abs(kc) or 1e-12, ki)
     return PIEstimate(kc, ti, max(fit, 0.0))
+
+
+def pi_settings(coef: FloatArray, ts: float) -> tuple[FloatArray, FloatArray]:
+    """Kc and Ti (s; NaN where no PI controller has them: no integral action, or the two
+    gains of opposite sign) from the regression coefficients a, b of ΔOP(k) = a·e(k) +
+    b·e(k−1) + c (the last axis of ``coef``; ``_identify_pi``): Kc·Ts/Ti = a + b and
+    Kc = (a − b)/2."""
+    a, b = coef[..., 0], coef[..., 1]
+    ki = a + b
+    kc = (a - b) / 2.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = np.where((ki != 0) & (kc * ki > 0), kc * ts / ki, np.nan)
+    return kc, ti
 
 
 def lowpass(x: FloatArray, ts: float, tf_s: float) -> FloatArray:
