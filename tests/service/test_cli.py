@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import RunCli
+from helpers import RunCli, free_port
 
 from plantcheck.diagnosis.result import CAUSES
 
@@ -25,6 +25,21 @@ def test_version_and_help(run_cli: RunCli) -> None:
     for cmd in ([], ["diagnose"], ["oscillation"]):
         h = run_cli(*cmd, "--help")
         assert h.returncode == 0 and "Usage" in h.stdout
+
+
+def test_demo_refuses_a_bad_admin_address_before_it_starts(run_cli: RunCli) -> None:
+    """``demo --admin`` (issue 48: a proposal typed into the simulator) names the option and
+    the fix for an address it cannot use, and starts nothing (no port, no database)."""
+    import socket
+
+    bad = run_cli("demo", "--admin", "nowhere")
+    assert bad.returncode != 0 and "--admin" in bad.stderr and "off" in bad.stderr, bad.stderr
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        busy = run_cli("demo", "--admin", f"127.0.0.1:{port}", "--port", str(free_port()))
+    assert busy.returncode != 0 and "choose another with --admin" in busy.stderr, busy.stderr
 
 
 def test_help_says_it_whole_and_every_reference_resolves(run_cli: RunCli) -> None:
