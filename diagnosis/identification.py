@@ -131,31 +131,62 @@ def _sse_grid(
     y: FloatArray, x: NDArray[np.float64], delays: NDArray[np.int64], segments: list[slice]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Residual sum of squares and gain K of PV ≈ K·x(k − d) + c_s + g_s·k over the samples
-    of ``segments`` (each with its own level c_s and drift g_s), for every row of ``x`` (a
-    time constant) and every delay d in ``delays`` (ascending): arrays (poles, delays)."""
-    n = y.size
-    rows = np.zeros(n, dtype=bool)
-    cols = []
-    for seg in segments:
-        rows[seg] = True
-        # each segment's level and drift, orthonormal in closed form (disjoint supports)
-        length = seg.stop - seg.start
-        t = np.arange(length, dtype=np.float64) - (length - 1) / 2.0
-        for v in (np.ones(length), t):
-            col = np.zeros(n)
-            norm = math.sqrt(float(v @ v))
-            col[seg] = v / norm if norm > 0 else 0.0
-            cols.append(col)
-    q = np.column_stack(cols)[rows]
-    yr = y[rows] - q @ (q.T @ y[rows])
+    of ``segments`` (disjoint, ascending, each with its own level c_s and drift g_s), for
+    every row of ``x`` (a time constant) and every delay d in ``delays`` (ascending): arrays
+    (poles, delays).
+
+    Each segment's level and drift are projected out of PV directly and out of x through
+    running sums. Only the samples some delay reaches are kept (each segment and the
+    ``max(delays) − min(delays)`` samples after it, in shift coordinates); over them Σx·PV
+    is one matrix-vector product per delay, and Σx, Σk·x and Σx² over each shifted segment
+    are its sum at one shift plus what entered minus what left. The gathered copy of x per
+    delay this replaces made the search three times slower. x is centred first (a constant
+    in x is a level, projected out anyway) so that the sums lose no digits."""
+    starts = np.array([s.start for s in segments], dtype=np.int64)
+    lengths = np.array([s.stop - s.start for s in segments], dtype=np.int64)
     max_d = int(delays[-1])
-    xp = np.concatenate([np.zeros((x.shape[0], max_d)), x], axis=1)
-    # xs[p, i, r] = x[p, k_r - d_i] for the fitted samples k_r: one gather, no window copy
-    xs = xp[:, (max_d - delays)[:, None] + np.flatnonzero(rows)[None, :]]
-    sxy = xs @ yr
-    proj = xs @ q
-    sxx = np.einsum("pdt,pdt->pd", xs, xs) - np.sum(proj**2, axis=2)
-    syy = float(yr @ yr)
+    reach = max_d - int(delays[0])
+    # x(k − d) = xc[o_s + k − start_s + r] for a sample k of segment s, r = max_d − d in
+    # 0 .. reach (before the window x is 0): each segment and the reach after it, in turn
+    spans = [(a - max_d, a - max_d + n + reach) for a, n in zip(starts, lengths, strict=True)]
+    xc = np.zeros((x.shape[0], sum(hi - lo for lo, hi in spans)))
+    at = 0
+    for lo, hi in spans:
+        xc[:, at + max(0, -lo) : at + hi - lo] = x[:, max(0, lo) : hi]
+        at += hi - lo
+    xc -= x.mean(axis=1, keepdims=True)
+    offsets = np.concatenate([[0], np.cumsum(lengths + reach)[:-1]])
+    yc = np.zeros(xc.shape[1] - reach)
+    for seg, o in zip(segments, offsets.tolist(), strict=True):
+        ys = y[seg]
+        t = np.arange(ys.size, dtype=np.float64) - (ys.size - 1) / 2.0
+        tt = float(t @ t)
+        yc[o : o + ys.size] = ys - ys.mean() - (t * (float(t @ ys) / tt) if tt > 0 else 0.0)
+    syy = float(yc @ yc)
+    width = yc.size
+    sxy = np.stack([xc[:, r : r + width] @ yc for r in (max_d - delays).tolist()], axis=1)
+    k = np.arange(xc.shape[1], dtype=np.float64)
+    at_zero = np.empty((3, x.shape[0], starts.size))
+    for i, (o, n) in enumerate(zip(offsets.tolist(), lengths.tolist(), strict=True)):
+        part = xc[:, o : o + n]
+        at_zero[:, :, i] = part.sum(axis=1), part @ k[o : o + n], np.einsum("pk,pk->p", part, part)
+    steps = offsets[:, None] + np.arange(reach)
+    came, went = xc[:, steps + lengths[:, None]], xc[:, steps]
+    entered = np.stack(
+        [came - went, came * (steps + lengths[:, None]) - went * steps, came * came - went * went]
+    )
+    moved = np.zeros((3, x.shape[0], starts.size, reach + 1))
+    np.cumsum(entered, axis=3, out=moved[..., 1:])
+    by_shift = at_zero[..., None] + moved
+    r = max_d - delays
+    window = np.moveaxis(by_shift[:, :, :, r], 3, 2)  # (3, poles, delays, segments)
+    s0, s1, s2 = window[0], window[1], window[2]
+    length = lengths.astype(np.float64)
+    first = offsets[None, :] + r[:, None]  # each shifted segment's first sample
+    drift = s1 - (first + (length - 1.0) / 2.0) * s0  # Σ (k − the segment's middle)·x
+    t_norm = length * (length * length - 1.0) / 12.0  # Σ (k − middle)²
+    drift_sq = np.divide(drift * drift, t_norm, out=np.zeros_like(drift), where=t_norm > 0)
+    sxx = np.sum(s2 - s0 * s0 / length - drift_sq, axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = np.where(sxx > 1e-12, sxy / sxx, 0.0)
         sse = np.where(sxx > 1e-12, syy - sxy * gain, syy)

@@ -211,3 +211,34 @@ def test_a_robust_lag_dominant_loop_is_predicted_to_settle() -> None:
     assert pred.robustness.gain_margin == pytest.approx(2.79, abs=0.05)
     assert _stable(pred) and abs(pred.pv_sp[-1] - 1.0) < 1e-3
     assert pred.t_s[1] <= 2.5 / 4.0 + 1e-9 and pred.t_s[-1] >= 12.0 * (47.0 + 2.5 + 47.9) - 1
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_grid_of_fits_is_least_squares_at_every_delay(seed: int) -> None:
+    """``_sse_grid`` (running sums and one product per delay) gives the residual and gain
+    of a least-squares fit of PV on x(k − d) with each segment's own level and drift,
+    delays reaching before the window (x is 0 there) included."""
+    from plantcheck.diagnosis.identification import _sse_grid
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(300, 900))
+    x = np.cumsum(rng.normal(size=(3, n)), axis=1) + 40.0
+    y = 0.7 * np.roll(x[1], 5) + rng.normal(size=n) + np.linspace(0.0, 3.0, n)
+    cuts = np.sort(rng.choice(np.arange(30, n - 30), 3, replace=False))
+    segments = [slice(5, int(cuts[0])), slice(int(cuts[1]), int(cuts[2])), slice(int(cuts[2]), n)]
+    delays = np.unique(rng.integers(0, 60, 7)).astype(np.int64)
+    sse, gain = _sse_grid(y, x, delays, segments)
+    for p in range(3):
+        for j, d in enumerate(delays.tolist()):
+            xd = np.concatenate([np.zeros(d), x[p, : n - d]])
+            cols = [xd]
+            for seg in segments:
+                for v in (np.ones(n), np.arange(n, dtype=np.float64)):
+                    col = np.zeros(n)
+                    col[seg] = v[seg]
+                    cols.append(col)
+            rows = np.concatenate([np.arange(s.start, s.stop) for s in segments])
+            a = np.column_stack(cols)[rows]
+            coef, res, *_ = np.linalg.lstsq(a, y[rows], rcond=None)
+            assert gain[p, j] == pytest.approx(coef[0], rel=1e-7, abs=1e-9)
+            assert sse[p, j] == pytest.approx(float(res[0]), rel=1e-7)
