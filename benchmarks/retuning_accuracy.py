@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from plantcheck.diagnosis.identification import ProcessModel, identify_process
 from plantcheck.diagnosis.retuning import PISetting, RetuneParams, predict, robustness
 from plantcheck.diagnosis.tuning import identify_pi
-from plantcheck.diagnosis.tuning_proposal import tuning_for
+from plantcheck.diagnosis.tuning_proposal import TuningSettings, tuning_for
 from plantcheck.simulator.tuning_cases import TuningCase, tuning_case
 
 
@@ -62,52 +63,89 @@ def identification(n: int, seed: int) -> None:
             )
 
 
+@dataclass
+class _Tally:
+    """Proposals for one tuning and family: made, robust (true GM >= 1.7), better (true
+    error integral <= 0.7x), small (within 20 %), out of ``loops``."""
+
+    loops: int = 0
+    made: int = 0
+    robust: int = 0
+    better: int = 0
+    small: int = 0
+
+
+def _judge(case: TuningCase, prop: dict[str, float], tally: _Tally) -> None:
+    """Apply the proposal to the true plant and compare it with the present tuning."""
+    params = RetuneParams()
+    setting = PISetting(prop["Kc"], prop["Ti_s"])
+    truth = case.true_model()
+    present = PISetting(case.controller.Kc, case.controller.Ti_s)
+    ratio = (
+        predict(truth, setting, case.ts, params).iae / predict(truth, present, case.ts, params).iae
+    )
+    tally.made += 1
+    tally.robust += robustness(truth, setting, case.ts).gain_margin >= 1.7
+    tally.better += ratio <= 0.7
+    tally.small += abs(ratio - 1.0) < 0.2
+
+
 def proposals(n: int, seed: int, loads: float, per_window: list[float]) -> list[float]:
     print(f"2. proposals (loads x{loads:g}, set-point steps)")
-    params = RetuneParams()
     cost: list[float] = []
     for tuning in ("aggressive", "sluggish", "good"):
-        made = robust = better = small = 0
+        tallies: dict[str, _Tally] = {}
+        averaging = _Tally()
         for i in range(n):
             case = tuning_case(seed + 10_000 + i, tuning, loads)  # type: ignore[arg-type]
             r = case.record
             # the chain identifies the present controller anyway (its stick-slip step):
             # the retuning adds what ``tuning_for`` costs
             pi = identify_pi(r.op, r.pv, r.sp, case.ts)
+            cause = f"{'sluggish' if tuning == 'good' else tuning}_tuning"
+            settings = TuningSettings(retune=RetuneParams(level_control=case.level_control))
             t0 = time.perf_counter()
             out = tuning_for(
-                f"{'sluggish' if tuning == 'good' else tuning}_tuning", r.pv, r.op, case.ts,
-                case.loop_type, case.sp_steps, None, pi,
-            )  # fmt: skip
+                cause, r.pv, r.op, case.ts, case.loop_type, case.sp_steps, None, pi, settings
+            )
             took_ms = (time.perf_counter() - t0) * 1e3
             cost.append(took_ms * 3600 / r.pv.size)
             per_window.append(took_ms)
             assert out is not None
-            prop = out.json["proposed"]
-            if prop is None:
-                continue
-            made += 1
-            setting = PISetting(prop["Kc"], prop["Ti_s"])
-            truth = case.true_model()
-            present = PISetting(case.controller.Kc, case.controller.Ti_s)
-            robust += robustness(truth, setting, case.ts).gain_margin >= 1.7
-            ratio = (
-                predict(truth, setting, case.ts, params).iae
-                / predict(truth, present, case.ts, params).iae
-            )
-            better += ratio <= 0.7
-            small += abs(ratio - 1.0) < 0.2
+            tally = tallies.setdefault(case.loop_type, _Tally())
+            tally.loops += 1
+            if out.json["proposed"] is not None:
+                _judge(case, out.json["proposed"], tally)
+            if case.loop_type == "level":
+                # the same level loop had it been configured for averaging control
+                averaging.loops += 1
+                loose = tuning_for(
+                    cause, r.pv, r.op, case.ts, case.loop_type, case.sp_steps, None, pi
+                )
+                if loose is not None and loose.json["proposed"] is not None:
+                    _judge(case, loose.json["proposed"], averaging)
+        _report(tuning, tallies, averaging)
+    return cost
+
+
+def _report(tuning: str, tallies: dict[str, _Tally], averaging: _Tally) -> None:
+    total = _Tally(*(sum(getattr(t, f) for t in tallies.values()) for f in _FIELDS))
+    rows = [("all", total), *sorted(tallies.items()), ("level if averaging", averaging)]
+    for family, t in rows:
         if tuning == "good":
             print(
-                f"   good      : {n - made}/{n} no proposal, {small} with the error integral "
-                f"within 20 %: {n - made + small}/{n} as asked"
+                f"   good       {family:18s}: {t.loops - t.made}/{t.loops} no proposal, "
+                f"{t.small} with the error integral within 20 %: "
+                f"{t.loops - t.made + t.small}/{t.loops} as asked"
             )
         else:
             print(
-                f"   {tuning:10s}: proposal for {made}/{n}; gain margin >= 1.7 in {robust}/"
-                f"{made}; error integral <= 0.7x in {better}/{made}"
+                f"   {tuning:10s} {family:18s}: proposal for {t.made}/{t.loops}; gain margin "
+                f">= 1.7 in {t.robust}/{t.made}; error integral <= 0.7x in {t.better}/{t.made}"
             )
-    return cost
+
+
+_FIELDS = ("loops", "made", "robust", "better", "small")
 
 
 def main() -> None:

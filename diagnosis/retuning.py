@@ -5,11 +5,12 @@ From the identified process model (``identification.py``):
 - **SIMC** PI (Skogestad 2003): Kc = τ/(K(τc + θ)), Ti = min(τ, 4(τc + θ)) for a first order
   plus dead time; Kc = 1/(K'(τc + θ)), Ti = 4(τc + θ) for an integrator plus dead time. The
   closed-loop time constant τc is SIMC's "tight but robust" τc = θ, never under two samples,
-  and three times looser for level loops (averaging level control absorbs inflow changes on
-  purpose; Shinskey 1996). The model is taken at its cautious edge (gain and dead time two
-  standard deviations up, time constant two down), so an uncertain model gets a gentler
-  setting rather than a risky one; the integral time keeps the nominal τ (a shorter one
-  would be the bolder setting).
+  and three times looser for level loops under averaging control (absorbing inflow changes
+  is their job; Shinskey 1996), unless the loop is configured for tight level control (a
+  boiler drum, a reactor's level: ``level_control = "tight"``). The model is taken at its
+  cautious edge (gain and dead time two standard deviations up, time constant two down), so
+  an uncertain model gets a gentler setting rather than a risky one; the integral time keeps
+  the nominal τ (a shorter one would be the bolder setting).
 - **Lambda** tuning, the alternative (Dahlin 1968; the pulp-and-paper practice): Kc =
   τ/(K(λ + θ)), Ti = τ with λ = max(τ, 3θ) (for an integrator, Ti = 2λ + θ and
   Kc = Ti/(K'(λ + θ)²)).
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -42,7 +44,10 @@ class RetuneParams:
     tau_c_over_theta: float = 1.0
     """SIMC's τc / θ: 1 is its tight but robust choice (Skogestad 2003)."""
     level_tau_c_over_theta: float = 3.0
-    """τc / θ for level loops: averaging control, loose on purpose."""
+    """τc / θ for level loops under averaging control: loose on purpose."""
+    level_control: Literal["averaging", "tight"] = "averaging"
+    """A level loop's job: averaging (a surge volume evens out the flow it passes on) or
+    tight (the level itself matters): SIMC's τc / θ as for any other loop."""
     min_tau_c_samples: float = 2.0
     """τc is at least this many samples (a dead time of a sample or less leaves no margin for
     the sampling itself)."""
@@ -225,7 +230,8 @@ def _cautious(model: ProcessModel, caution: float) -> tuple[float, float, float]
 def simc(model: ProcessModel, ts: float, loop_type: str, params: RetuneParams) -> PISetting:
     """SIMC PI for the model, at its cautious edge (Skogestad 2003)."""
     K, tau, theta = _cautious(model, params.caution_sd)
-    ratio = params.level_tau_c_over_theta if loop_type == "level" else params.tau_c_over_theta
+    averaging = loop_type == "level" and params.level_control == "averaging"
+    ratio = params.level_tau_c_over_theta if averaging else params.tau_c_over_theta
     tau_c = max(ratio * theta, params.min_tau_c_samples * ts)
     sign = math.copysign(1.0, float(model.K or 1.0))
     if model.kind == "ipdt":

@@ -61,6 +61,13 @@ class Decision(StrEnum):
     learned = "learned"
 
 
+class LevelControl(StrEnum):
+    """``diagnose --level-control`` values (issue 48): what a level loop's retuning aims at."""
+
+    averaging = "averaging"
+    tight = "tight"
+
+
 class LogFormat(StrEnum):
     """``--log-format`` values."""
 
@@ -211,9 +218,19 @@ def diagnose_cmd(
             show_default=False,
         ),
     ] = None,
+    level_control: Annotated[
+        LevelControl,
+        typer.Option(
+            "--level-control",
+            help="For a level loop's retuning: averaging (a surge volume passes on even "
+            "flow; the proposal stays loose on purpose) or tight (the level itself matters).",
+        ),
+    ] = LevelControl.averaging,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
     from plantcheck.diagnosis import ChainParams, baseline_from, diagnose_loop
+    from plantcheck.diagnosis.retuning import RetuneParams
+    from plantcheck.diagnosis.tuning_proposal import TuningSettings
 
     rec = _load(file, sample_time, ("pv", "op"), max_samples)
     sl, extra = _tail(rec, max_samples)
@@ -222,7 +239,8 @@ def diagnose_cmd(
     sp = rec.signals["sp"][sl] if "sp" in rec.signals else None
     auto = rec.auto[sl] if rec.auto is not None else None
     mv = rec.signals["mv"][sl] if "mv" in rec.signals else None
-    params = ChainParams(decide_by=decision.value, dead_time_s=dead_time)
+    retuning = TuningSettings(retune=RetuneParams(level_control=level_control.value))
+    params = ChainParams(decide_by=decision.value, dead_time_s=dead_time, retuning=retuning)
     normal = None
     if baseline is not None:
         base = _load(baseline, sample_time, ("pv", "op"), max_samples)

@@ -300,6 +300,9 @@ class ControllerConfig(_Strict):
     action: Literal["reverse", "direct"] | None = None
     pv_span: float | None = Field(None, gt=0, le=1e12)
     """PV units that make 100 % of span (the gain is then dimensionless, % per %)."""
+    level_control: Literal["averaging", "tight"] = "averaging"
+    """For a level loop: averaging (a surge volume passes on even flow; the proposal stays
+    loose on purpose) or tight (the level itself matters: a boiler drum, a reactor)."""
 
     @model_validator(mode="after")
     def _band_needs_span(self) -> ControllerConfig:

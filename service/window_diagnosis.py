@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from plantcheck.diagnosis import Baseline, ChainParams, diagnose_loop
 from plantcheck.diagnosis.controller_forms import ControllerForm
+from plantcheck.diagnosis.retuning import RetuneParams
 from plantcheck.diagnosis.tuning_proposal import TuningSettings
 
 FloatArray = NDArray[np.float64]
@@ -63,7 +64,7 @@ def diagnose_window(
         loop_type=loop_type,
         quantify=quantify,
         params=ChainParams(
-            retuning=TuningSettings(form=ControllerForm(**(controller or {}))),
+            retuning=_retuning(controller or {}),
             dead_time_s=dead_time_s,
         )
         if controller or dead_time_s is not None
@@ -71,3 +72,11 @@ def diagnose_window(
         baseline=Baseline(baseline[0], source=baseline[1]) if baseline is not None else None,
     )
     return d.with_notes_first(notes or []).to_dict()
+
+
+def _retuning(controller: dict[str, Any]) -> TuningSettings:
+    """The retuning's settings from the loop's ``controller`` configuration: its form, and
+    for a level loop whether the proposal is for averaging or tight control."""
+    form = {k: v for k, v in controller.items() if k != "level_control"}
+    level = controller.get("level_control", "averaging")
+    return TuningSettings(form=ControllerForm(**form), retune=RetuneParams(level_control=level))

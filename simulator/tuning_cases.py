@@ -1,6 +1,7 @@
 """Simulated loops with a known process and controller, for the identification and retuning
 figures (issue 48): self-regulating first order plus dead time (τ 3-300 s, θ/τ 0.05-1.5,
-gain 0.4-3 of either sign) or integrating (levels), sampled at a twentieth of their time
+gain 0.4-3 of either sign) or integrating (levels under tight control: their good tuning is
+SIMC's τc = 1-1.5 θ, not an averaging one), sampled at a twentieth of their time
 scale, tuned well (SIMC τc = 1-1.5 θ), sluggishly (τc = 4-10 θ) or aggressively (60-85 % of
 the ultimate gain), with 1-4 set-point steps (or none: routine operation), measurement noise
 and slow loads at the process input scaled by ``loads``.
@@ -52,6 +53,12 @@ class TuningCase:
     def loop_type(self) -> str:
         """``level`` for an integrating process, else ``flow``."""
         return "level" if self.process.kind == "integrating" else "flow"
+
+    @property
+    def level_control(self) -> Literal["averaging", "tight"]:
+        """The level loops here are tuned for tight control (their good setting is SIMC's
+        τc = 1-1.5 θ): a proposal for them is judged as one for tight control."""
+        return "tight"
 
     def true_model(self) -> ProcessModel:
         """The process as the identification would state it, with the dead time applied."""

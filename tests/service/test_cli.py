@@ -207,3 +207,31 @@ def test_diagnose_with_a_baseline(run_cli: RunCli, tmp_path: Path) -> None:
     flat.write_text("t,pv,op\n" + "".join(f"{t},50,40\n" for t in range(200)))
     bad = run_cli(*args, "--baseline", str(flat))
     assert bad.returncode == 2 and "flat.csv" in bad.stderr and "normal operation" in bad.stderr
+
+
+def test_diagnose_level_control_tight_retunes_a_level_as_tightly_as_any_loop(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    """Issue 48: a level loop's proposal is loose on purpose (averaging control, τc = 3θ at
+    the model's cautious edge) unless ``--level-control tight`` says the level matters (τc =
+    θ); a value it does not know is refused naming the option."""
+    from plantcheck.simulator.tuning_cases import tuning_case
+
+    r = tuning_case(11006, "sluggish", 0.3).record
+    path = tmp_path / "lic.csv"
+    rows = "\n".join(f"{t:g},{s:.4f},{p:.5f},{o:.4f}" for t, s, p, o in
+                     zip(r.t, r.sp, r.pv, r.op, strict=True))  # fmt: skip
+    path.write_text("t,sp,pv,op\n" + rows + "\n")
+    args = ("diagnose", str(path), "--loop-type", "level", "--json")
+    proposals = {}
+    for mode in ("averaging", "tight"):
+        out = run_cli(*args, "--level-control", mode)
+        assert out.returncode == 0, out.stderr
+        d = json.loads(out.stdout)
+        assert d["cause"] == "sluggish_tuning", d["cause"]
+        proposals[mode] = d["tuning"]["proposed"]
+    loose, tight = proposals["averaging"], proposals["tight"]
+    assert loose["tau_c_s"] == pytest.approx(3.0 * tight["tau_c_s"], rel=0.01)
+    assert tight["Kc"] > 1.5 * loose["Kc"]
+    bad = run_cli(*args, "--level-control", "average")
+    assert bad.returncode == 2 and "--level-control" in bad.stderr

@@ -113,3 +113,23 @@ def test_deploy_site_example_is_a_valid_configuration(monkeypatch: pytest.Monkey
     assert cfg.scheduler.engine == "queue" and cfg.collectors() == ["unit1", "unit2"]
     assert [lp.id for lp in cfg.read_by("unit1").loop] == ["10-FIC-101"]
     assert cfg.read_by("").source == []  # the service machine reads no source itself
+
+
+def test_a_level_loops_control_goal_reaches_its_retuning(tmp_path: Path) -> None:
+    """Issue 48: ``controller.level_control`` goes with the loop's schedule to the retuning
+    (averaging unless configured), apart from the controller's form."""
+    from plantcheck.service.runtime import schedules_of
+    from plantcheck.service.window_diagnosis import _retuning
+
+    path = tmp_path / "plantcheck.toml"
+    path.write_text(
+        '[[source]]\nname = "plc"\nprotocol = "modbus"\n\n'
+        '[[loop]]\nid = "LIC1"\ntype = "level"\nsource = "plc"\n'
+        'pv = "hr:1:float32"\nop = "hr:3:float32"\n'
+        'controller = { level_control = "tight", integral = "minutes" }\n\n'
+        '[[loop]]\nid = "LIC2"\ntype = "level"\nsource = "plc"\n'
+        'pv = "hr:5:float32"\nop = "hr:7:float32"\n'
+    )
+    tight, default = (_retuning(dict(s.controller)) for s in schedules_of(load_config(path)))
+    assert tight.retune.level_control == "tight" and tight.form.integral == "minutes"
+    assert default.retune.level_control == "averaging" and default.form.integral == "seconds"
