@@ -144,7 +144,7 @@ def tuning_for(
         auto_share=auto_share, params=s.identification,
     )  # fmt: skip
     current = PISetting(pi.kc, pi.ti_s) if pi is not None and pi.ti_s else None
-    prop = propose(model, current, ts, loop_type, s.retune)
+    prop = propose(model, current, ts, loop_type, s.retune, cause == "sluggish_tuning")
     setting: DcsSetting | None = None
     note = prop.note
     if prop.proposed is not None:
