@@ -18,7 +18,7 @@ from plantcheck.diagnosis.retuning import (
     simc,
 )
 from plantcheck.diagnosis.tuning import identify_pi
-from plantcheck.diagnosis.tuning_proposal import tuning_for
+from plantcheck.diagnosis.tuning_proposal import TuningSettings, tuning_for
 from plantcheck.simulator.tuning_cases import TuningCase, tuning_case
 
 
@@ -242,3 +242,20 @@ def test_the_grid_of_fits_is_least_squares_at_every_delay(seed: int) -> None:
             coef, res, *_ = np.linalg.lstsq(a, y[rows], rcond=None)
             assert gain[p, j] == pytest.approx(coef[0], rel=1e-7, abs=1e-9)
             assert sse[p, j] == pytest.approx(float(res[0]), rel=1e-7)
+
+
+def test_a_loop_diagnosed_sluggish_is_not_retuned_for_margins_its_model_misreads() -> None:
+    """A well-tuned level (Ms 1.84 on its true plant) whose model, 22 % high in gain, reads
+    Ms 2.02: diagnosed sluggish it keeps its tuning (its record says slow, not fragile);
+    diagnosed aggressive, the same margins replace it."""
+    case = tuning_case(15004, "good", 0.3)
+    r = case.record
+    pi = identify_pi(r.op, r.pv, r.sp, case.ts)
+    args = (r.pv, r.op, case.ts, case.loop_type, case.sp_steps, None, pi)
+    settings = TuningSettings(retune=RetuneParams(level_control=case.level_control))
+    sluggish = tuning_for("sluggish_tuning", *args, settings)
+    aggressive = tuning_for("aggressive_tuning", *args, settings)
+    assert sluggish is not None and aggressive is not None
+    assert sluggish.json["proposed"] is None and "keep it" in sluggish.json["note"]
+    assert aggressive.json["proposed"] is not None
+    assert aggressive.json["predicted"]["current"]["ms"] > 2.0
