@@ -26,7 +26,12 @@ from plantcheck.diagnosis.controller_change import (
     latest_controller_change,
 )
 from plantcheck.diagnosis.ellipse import apparent_stiction
-from plantcheck.diagnosis.evidence import evidence_vector, shape_evidence, window_evidence
+from plantcheck.diagnosis.evidence import (
+    evidence_vector,
+    shape_evidence,
+    spectral_evidence,
+    window_evidence,
+)
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
 from plantcheck.diagnosis.kpis import KpiParams, dead_time_for, travel, window_kpis
 from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
@@ -943,6 +948,9 @@ def _evidence(run: _Run) -> dict[str, float | None]:
                 ti,
             )
         )
+    whole = run.pi_window
+    ti_whole = whole.ti_s / run.ts if whole is not None and whole.ti_s else None
+    ev.update(spectral_evidence(win.sp - win.pv, ti_whole))
     for name, res in run.tests.items():
         if name in FEATURE_TESTS:
             ev[name] = res.value

@@ -15,7 +15,7 @@ import numpy as np
 
 from plantcheck.diagnosis.signal_tools import FloatArray, detrend, fft_acf, noise_sigma
 
-EVIDENCE_VERSION = 3
+EVIDENCE_VERSION = 4
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn."""
 
 FEATURES: dict[str, str] = {
@@ -65,6 +65,21 @@ FEATURES: dict[str, str] = {
     "dop_dpv_corr": "correlation of OP's and PV's increments",
     "kc_share": "identified Kc × σ(error) over σ(OP): the proportional share of OP's moves",
     "acf_time_over_ti": "lag where the error's ACF falls below 1/e, over the integral time",
+    "error_band_0": "share of the error's power below 0.003 / Ti (the whole window)",
+    "error_band_1": "share of the error's power at 0.003-0.01 / Ti",
+    "error_band_2": "share of the error's power at 0.01-0.03 / Ti",
+    "error_band_3": "share of the error's power at 0.03-0.1 / Ti",
+    "error_band_4": "share of the error's power at 0.1-0.3 / Ti",
+    "error_band_5": "share of the error's power at 0.3-1 / Ti",
+    "error_band_6": "share of the error's power at 1-3 / Ti",
+    "error_band_7": "share of the error's power at 3-10 / Ti",
+    "peak_f_ti": "log10 of the error spectrum's peak frequency times Ti",
+    "peak_share": "share of the error's power within a bin of its spectral peak",
+    "harmonic_2": "power at twice the peak frequency over the peak's",
+    "harmonic_3": "power at three times the peak frequency over the peak's (odd harmonics: "
+    "a square or triangular cycle)",
+    "spectral_flatness": "geometric over arithmetic mean of the error's power spectrum (white "
+    "noise 0.56 with a Hann window, a pure cycle near 0)",
 }
 """Each evidence entry's name and meaning, in the order of the model's input vector."""
 
@@ -148,6 +163,50 @@ def shape_evidence(
         "kc_share": abs(kc) * sd_e / sd_op if kc is not None and sd_op > 0 else None,
         "acf_time_over_ti": tau / ti_samples if tau is not None and ti_samples else None,
     }
+
+
+BAND_EDGES = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
+"""Edges of the error's power bands, in cycles per integral time: the bands sit where the
+loop's own dynamics put them (a sluggish loop's power low, an aggressive one's near its
+crossover, a periodic load anywhere), whatever the sample time."""
+
+
+def spectral_evidence(e: FloatArray, ti_samples: float | None) -> dict[str, float | None]:
+    """Where the control error's power lies against the controller's integral time, and the
+    shape of its spectral peak (Hann-windowed periodogram, Welch 1967; harmonics of a
+    limit cycle, Thornhill & Hägglund 1997)."""
+    n = int(e.size)
+    if n < 16:
+        return {}
+    nfft = 1 << math.ceil(math.log2(n))
+    d = e - np.mean(e)
+    power = np.abs(np.fft.rfft(d * np.hanning(n), nfft)) ** 2
+    power[0] = 0.0
+    total = float(power.sum())
+    if total <= 0:
+        return {}
+    k0 = int(np.argmax(power[1:])) + 1
+
+    def near(k: int) -> float:
+        return float(power[max(1, k - 1) : min(power.size, k + 2)].sum())
+
+    peak = near(k0)
+    out: dict[str, float | None] = {
+        "peak_share": peak / total,
+        "harmonic_2": near(2 * k0) / peak if 2 * k0 < power.size else None,
+        "harmonic_3": near(3 * k0) / peak if 3 * k0 < power.size else None,
+        "spectral_flatness": float(np.exp(np.mean(np.log(power[1:] + 1e-300))))
+        / float(np.mean(power[1:])),
+    }
+    if ti_samples:
+        f_ti = np.fft.rfftfreq(nfft) * ti_samples
+        cum = np.concatenate([[0.0], np.cumsum(power)])
+        idx = np.searchsorted(f_ti, np.asarray(BAND_EDGES))
+        out["error_band_0"] = float(cum[idx[0]]) / total
+        for b in range(1, len(BAND_EDGES)):
+            out[f"error_band_{b}"] = float(cum[idx[b]] - cum[idx[b - 1]]) / total
+        out["peak_f_ti"] = math.log10(max(float(f_ti[k0]), 1e-6))
+    return out
 
 
 def evidence_vector(evidence: dict[str, float | None]) -> FloatArray:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections import Counter
 
 import numpy as np
+import pytest
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.diagnosis.cause_model import decide, shipped_cause_model
@@ -144,3 +145,22 @@ def test_flat_pv_while_op_moves_names_both_readings() -> None:
     # an OP that hardly moves says nothing about the valve
     still = diagnose(pv, np.full(n, 40.0) + 0.01 * np.sin(np.arange(n)), 1.0)
     assert not any("while PV stayed flat" in x for x in still.notes)
+
+
+def test_spectral_evidence_reads_a_cycle_against_the_integral_time() -> None:
+    """A sine of 100 samples with Ti 25 samples peaks at f·Ti 0.25 with no harmonics; a
+    square wave of the same period carries a third harmonic of 1/9 of its power; white noise
+    spreads its power flat (Hann-windowed periodogram's flatness about 0.56)."""
+    from plantcheck.diagnosis.evidence import spectral_evidence
+
+    k = np.arange(4000)
+    sine = spectral_evidence(np.sin(2 * np.pi * k / 100), 25.0)
+    assert sine["peak_f_ti"] == pytest.approx(np.log10(0.25), abs=0.01)
+    assert sine["peak_share"] > 0.95 and sine["harmonic_3"] < 1e-3
+    assert sine["error_band_4"] > 0.95  # 0.1-0.3 cycles per Ti
+    square = spectral_evidence(np.sign(np.sin(2 * np.pi * (k + 0.5) / 100)), 25.0)
+    assert square["harmonic_3"] == pytest.approx(1 / 9, rel=0.15)
+    noise = spectral_evidence(np.random.default_rng(0).normal(size=4096), None)
+    assert 0.45 < noise["spectral_flatness"] < 0.65 and "error_band_0" not in noise
+    shares = [sine[f"error_band_{b}"] for b in range(8)]
+    assert sum(shares) <= 1.0 + 1e-9
