@@ -8,7 +8,8 @@ and any window can be drawn again. The family each window came from is part of i
 
 Classes are balanced: window ``index`` has class ``CLASSES[index % 6]``. A draw whose fault
 the record cannot show (a sticky valve whose cycle hides in the noise, a limit the output never
-reaches) is drawn again with the next sub-seed, so every label is visible in its window; the
+reaches, a sluggish controller that nothing tests: its error no larger than its well-tuned
+twin's) is drawn again with the next sub-seed, so every label is visible in its window; the
 ambiguity that remains (short records, few cycles, noise) is the plant's own.
 """
 
@@ -34,7 +35,7 @@ from plantcheck.simulator.loop import (
 )
 from plantcheck.simulator.plant_windows import steady_op
 
-CORPUS_VERSION = 3
+CORPUS_VERSION = 4
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
 
 CLASSES: tuple[str, ...] = (
@@ -71,6 +72,13 @@ VISIBLE = 1.6
 """A fault is visible when the control error's σ is at least this many times the noise σ
 (its own variance then exceeds the noise's by half again); drawn again otherwise."""
 
+VISIBLY_SLUGGISH = 1.3
+"""A sluggish loop shows when its control error's σ is at least this many times that of the
+same loop, loads, noise and set points under its well-tuned controller (its variance 1.7
+times): a slow controller that no load or set-point move tests looks like a good one, and no
+record can then tell them apart (corpus version 4; version 3 labelled such windows
+sluggish)."""
+
 
 @dataclass(frozen=True)
 class CorpusCase:
@@ -82,6 +90,8 @@ class CorpusCase:
     config: LoopConfig
     family: dict[str, str]
     ultimate_period_s: float
+    well_tuned: PIController | None = None
+    """For a sluggish window: the controller it would have if well tuned (its twin)."""
 
 
 def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -204,6 +214,10 @@ def _shows(case: CorpusCase, rec: LoopRecord) -> bool:
         e = rec.sp - rec.pv
         if float(np.std(e - np.mean(e))) < VISIBLE * noise:
             return False
+    if case.cause == "sluggish_tuning" and case.well_tuned is not None:
+        twin = simulate_loop(replace(case.config, controller=case.well_tuned))
+        e, e_twin = rec.sp - rec.pv, twin.sp - twin.pv
+        return float(np.std(e)) >= VISIBLY_SLUGGISH * float(np.std(e_twin))
     if case.cause == "stiction":
         moves = np.abs(np.diff(rec.mv)) > 1e-9
         starts = int(np.sum(moves[1:] & ~moves[:-1]))
@@ -234,6 +248,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
     sp_kind = str(rng.choice(FAMILIES["sp"], p=[0.35, 0.35, 0.15, 0.15]))
     sp_steps = _set_points(rng, sp_kind, dur, ts)
     valve, S, J = "linear", 0.0, 0.0
+    good = pi  # the twin a sluggish window is compared with
     if cause == "stiction":
         valve = str(rng.choice(FAMILIES["valve"][1:]))
         S = _log_uniform(rng, 0.2, 10.0)
@@ -310,6 +325,10 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         op_min, op_max = 100.0 - op_max, 100.0 - op_min
         loads = tuple(_negate(d) for d in loads)
     pi = PIController(Kc=pi.Kc, Ti_s=pi.Ti_s, op_min=op_min, op_max=op_max)
+    twin = None
+    if cause == "sluggish_tuning":
+        kc = math.copysign(good.Kc, pi.Kc)
+        twin = PIController(Kc=kc, Ti_s=good.Ti_s, op_min=op_min, op_max=op_max)
     loads = (*loads, background)
     rec_kind = str(rng.choice(FAMILIES["recording"], p=[0.4, 0.2, 0.2, 0.2]))
     quantum = _log_uniform(rng, 0.5, 3.0) * noise if rec_kind == "quantised" else 0.0
@@ -343,7 +362,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
     )
     family = {"process": pkind, "valve": valve, "load": load_kind, "sp": sp_kind, "tuning": tuning,
               "limit": limit_kind, "recording": rec_kind}  # fmt: skip
-    return CorpusCase(index, cause, loop_type, cfg, family, tu)
+    return CorpusCase(index, cause, loop_type, cfg, family, tu, twin)
 
 
 def _negate(d: Disturbance) -> Disturbance:

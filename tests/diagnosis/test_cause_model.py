@@ -164,3 +164,19 @@ def test_spectral_evidence_reads_a_cycle_against_the_integral_time() -> None:
     assert 0.45 < noise["spectral_flatness"] < 0.65 and "error_band_0" not in noise
     shares = [sine[f"error_band_{b}"] for b in range(8)]
     assert sum(shares) <= 1.0 + 1e-9
+
+
+def test_a_sluggish_corpus_window_shows_against_its_well_tuned_twin() -> None:
+    """Corpus version 4: a window labelled sluggish has an error at least 1.3 times that of
+    the same loop, loads, noise and set points under its well-tuned controller."""
+    from dataclasses import replace
+
+    from plantcheck.simulator.corpus import VISIBLY_SLUGGISH
+
+    for index in (3, 9, 15):
+        case, rec = draw_case(7, index)
+        assert case.cause == "sluggish_tuning" and case.well_tuned is not None
+        twin = simulate_loop(replace(case.config, controller=case.well_tuned))
+        ratio = float(np.std(rec.sp - rec.pv)) / float(np.std(twin.sp - twin.pv))
+        assert ratio >= VISIBLY_SLUGGISH, (index, ratio)
+        assert abs(case.well_tuned.Kc) > abs(case.config.controller.Kc)
