@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -129,7 +129,7 @@ def proposals(n: int, seed: int, loads: float, per_window: list[float]) -> list[
 
 
 def _report(tuning: str, tallies: dict[str, _Tally], averaging: _Tally) -> None:
-    total = _Tally(*(sum(getattr(t, f) for t in tallies.values()) for f in _FIELDS))
+    total = _Tally(*(sum(getattr(t, f.name) for t in tallies.values()) for f in fields(_Tally)))
     rows = [("all", total), *sorted(tallies.items()), ("level if averaging", averaging)]
     for family, t in rows:
         if tuning == "good":
@@ -143,9 +143,6 @@ def _report(tuning: str, tallies: dict[str, _Tally], averaging: _Tally) -> None:
                 f"   {tuning:10s} {family:18s}: proposal for {t.made}/{t.loops}; gain margin "
                 f">= 1.7 in {t.robust}/{t.made}; error integral <= 0.7x in {t.better}/{t.made}"
             )
-
-
-_FIELDS = ("loops", "made", "robust", "better", "small")
 
 
 def main() -> None:
