@@ -35,7 +35,7 @@ from plantcheck.simulator.loop import (
 )
 from plantcheck.simulator.plant_windows import steady_op
 
-CORPUS_VERSION = 5
+CORPUS_VERSION = 6
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
 
 CLASSES: tuple[str, ...] = (
@@ -254,13 +254,15 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
     loads: tuple[Disturbance, ...] = (_nuisance_load(rng, load_kind, dur, tu, load_size),)
     sp_kind = str(rng.choice(FAMILIES["sp"], p=[0.35, 0.35, 0.15, 0.15]))
     sp_steps = _set_points(rng, sp_kind, dur, ts)
-    valve, S, J = "linear", 0.0, 0.0
+    valve, S, J, spread = "linear", 0.0, 0.0, 0.0
     good = pi  # a mistuned window's twin has this controller
     periodic = 0  # a disturbed window's first loads are the periodic ones
     if cause == "stiction":
         valve = str(rng.choice(FAMILIES["valve"][1:]))
         S = _log_uniform(rng, 0.2, 10.0)
         J = 0.0 if valve == "backlash" else float(rng.uniform(0.0, 1.0)) * S
+        # half the sticky valves' friction varies from stop to stop, up to ±30 % (one σ)
+        spread = float(rng.uniform(0.0, 0.3)) if rng.uniform() < 0.5 else 0.0
         # the cycle a sticky valve drives moves PV by about the gain times the band: a noise
         # larger than that hides the fault, which no record can then show
         swing = S * (proc.K * 20.0 * ts if proc.kind == "integrating" else proc.K)
@@ -352,6 +354,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         valve=valve,  # type: ignore[arg-type]
         S=S,
         J=J,
+        friction_spread=spread,
         disturbances=loads,
         noise_std=noise,
         sp_steps=sp_steps,

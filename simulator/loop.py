@@ -23,6 +23,7 @@ from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.valves import (
     BacklashValve,
     ChoudhuryValve,
+    DriftingFriction,
     HeValve,
     KanoValve,
     LinearValve,
@@ -103,6 +104,9 @@ class LoopConfig:
     """Positioner and actuator fault between OP and the stem; None: the stem is the valve."""
     mv_noise_std: float = 0.0
     """Measurement noise of the stem position sensor, % of travel."""
+    friction_spread: float = 0.0
+    """A sticky valve's friction varies from stop to stop by exp(this × N(0, 1))
+    (``valves.DriftingFriction``); 0: the same band at every stop."""
     pv_quantum: float = 0.0
     """Resolution of the recorded PV (transmitter or historian steps), % of span; 0: none."""
     pv_compression: float = 0.0
@@ -132,16 +136,21 @@ class LoopRecord:
 
 def make_valve(cfg: LoopConfig) -> Valve:
     """Build the valve model named in ``cfg`` (S, J in % of travel)."""
+    sticky: KanoValve | HeValve | ChoudhuryValve | BacklashValve
     if cfg.valve == "kano":
-        return KanoValve(S=cfg.S, J=cfg.J)
-    if cfg.valve == "he":
+        sticky = KanoValve(S=cfg.S, J=cfg.J)
+    elif cfg.valve == "he":
         # He model parameters from (S, J): S = fs + fd, J = fs - fd.
-        return HeValve(fs=(cfg.S + cfg.J) / 2.0, fd=(cfg.S - cfg.J) / 2.0)
-    if cfg.valve == "choudhury":
-        return ChoudhuryValve(S=cfg.S, J=cfg.J)
-    if cfg.valve == "backlash":
-        return BacklashValve(d=cfg.S)
-    return LinearValve()
+        sticky = HeValve(fs=(cfg.S + cfg.J) / 2.0, fd=(cfg.S - cfg.J) / 2.0)
+    elif cfg.valve == "choudhury":
+        sticky = ChoudhuryValve(S=cfg.S, J=cfg.J)
+    elif cfg.valve == "backlash":
+        sticky = BacklashValve(d=cfg.S)
+    else:
+        return LinearValve()
+    if cfg.friction_spread > 0.0:
+        return DriftingFriction(sticky, cfg.friction_spread, seed=cfg.seed + 1)
+    return sticky
 
 
 def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator) -> FloatArray:

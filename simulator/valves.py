@@ -11,10 +11,13 @@ Each model maps the controller output OP (% of travel) to the valve stem positio
 - ``ChoudhuryValve``: the data-driven (S, J) model of Choudhury, Thornhill & Shah (2005): a
   valve that stops sticks until the input has moved S from where it stuck, either way.
 - ``BacklashValve``: pure deadband (backlash) of width d: no stickband, no slip.
+- ``DriftingFriction``: any of the four whose friction changes from one stop to the next.
 """
 
 from __future__ import annotations
 
+import math
+import random
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -166,3 +169,45 @@ class BacklashValve:
         elif self._x - u > self.d / 2.0:
             self._x = u + self.d / 2.0
         return self._x
+
+
+FRICTION_FIELDS: dict[type, tuple[str, ...]] = {
+    KanoValve: ("S", "J"),
+    HeValve: ("fs", "fd"),
+    ChoudhuryValve: ("S", "J"),
+    BacklashValve: ("d",),
+}
+"""The band and jump fields of each sticky model, in % of travel."""
+
+
+@dataclass
+class DriftingFriction:
+    """A sticky valve whose friction is not the same at every stop: packing wear, temperature,
+    the stem's position and the process pressure move the bands from one stick to the next,
+    so a real stick-slip cycle is less regular than the models' own. Each time the stem
+    stops, every band and jump of the wrapped model is set to its nominal value ×
+    exp(``spread`` · N(0, 1)), one factor for all (J stays at most S); drawn from ``seed``,
+    so a run is reproducible."""
+
+    valve: KanoValve | HeValve | ChoudhuryValve | BacklashValve
+    spread: float
+    seed: int = 0
+    _nominal: dict[str, float] = field(default_factory=dict, init=False, repr=False)
+    _rng: random.Random = field(default_factory=random.Random, init=False, repr=False)
+    _last: float | None = field(default=None, init=False, repr=False)
+    _moving: bool = field(default=False, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        names = FRICTION_FIELDS[type(self.valve)]
+        self._nominal = {k: float(getattr(self.valve, k)) for k in names}
+        self._rng = random.Random(self.seed)
+
+    def step(self, op: float) -> float:
+        y = self.valve.step(op)
+        moving = self._last is not None and y != self._last
+        if self._moving and not moving:
+            factor = math.exp(self.spread * self._rng.gauss(0.0, 1.0))
+            for k, v in self._nominal.items():
+                setattr(self.valve, k, v * factor)
+        self._moving, self._last = moving, y
+        return y

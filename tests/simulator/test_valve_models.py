@@ -118,3 +118,30 @@ def test_stenman_stick_band() -> None:
 def test_he_rejects_a_negative_kinetic_band() -> None:
     with pytest.raises(ValueError, match="f_d must be >= 0"):
         he_grid(np.linspace(0.0, 10.0, 50), [2.0] * 8, [-0.5] * 8)
+
+
+@pytest.mark.parametrize("name", ["kano", "he", "choudhury", "backlash"])
+def test_drifting_friction_changes_the_band_at_each_stop_and_only_then(name: str) -> None:
+    """Spread 0 is the plain model sample for sample; a spread moves the bands by one common
+    factor at each stop (J stays at most S), the same for the same seed."""
+    from dataclasses import replace
+
+    from plantcheck.simulator.loop import LoopConfig, make_valve
+    from plantcheck.simulator.valves import FRICTION_FIELDS, DriftingFriction
+
+    cfg = LoopConfig(valve=name, S=3.0, J=1.0, seed=4)  # type: ignore[arg-type]
+    plain, same = make_valve(cfg), make_valve(replace(cfg, friction_spread=0.0))
+    assert [plain.step(u) for u in U] == [same.step(u) for u in U]
+    drifting = make_valve(replace(cfg, friction_spread=0.3))
+    again = make_valve(replace(cfg, friction_spread=0.3))
+    assert isinstance(drifting, DriftingFriction)
+    fields = FRICTION_FIELDS[type(drifting.valve)]
+    bands, out = set(), []
+    for u in U:
+        out.append(drifting.step(u))
+        bands.add(tuple(getattr(drifting.valve, k) for k in fields))
+    assert out == [again.step(u) for u in U]
+    assert len(bands) > 10
+    first = tuple(getattr(make_valve(cfg), k) for k in fields)
+    ratios = {round(b[i] / first[i], 9) for b in bands for i in range(len(fields)) if first[i]}
+    assert len(ratios) == len(bands)  # one factor for every field of a stop
