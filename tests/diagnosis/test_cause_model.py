@@ -168,21 +168,29 @@ def test_spectral_evidence_reads_a_cycle_against_the_integral_time() -> None:
 
 
 def test_a_faulty_corpus_window_shows_against_its_twin_without_the_fault() -> None:
-    """Corpus version 5: a window labelled stiction, sluggish or external disturbance has an
-    error at least 1.3 times that of its twin: the same loop, loads, noise and set points with
-    a linear valve, the well-tuned controller or no periodic load."""
-    from plantcheck.simulator.corpus import VISIBLY_FAULTY
+    """Corpus version 7: a window labelled stiction, sluggish or external disturbance has an
+    error σ at least 1.3 times that of its twin (the same loop, loads, noise and set points
+    with a linear valve, the well-tuned controller or no periodic load); a loop near its
+    stability limit rings: 1.3² times its twin's error power around the ultimate frequency."""
+    from plantcheck.simulator.corpus import VISIBLY_FAULTY, _ringing
 
     for index in range(12):
         case, rec = draw_case(7, index)
-        if case.cause in ("ok", "aggressive_tuning", "saturation"):
+        if case.cause in ("ok", "saturation"):
             assert case.twin is None
             continue
         assert case.twin is not None, case.cause
         twin = simulate_loop(case.twin)
-        ratio = float(np.std(rec.sp - rec.pv)) / float(np.std(twin.sp - twin.pv))
-        assert ratio >= VISIBLY_FAULTY, (index, case.cause, ratio)
+        e, e_twin = rec.sp - rec.pv, twin.sp - twin.pv
         cfg, tw = case.config, case.twin
+        if case.cause == "aggressive_tuning":
+            ts, tu = cfg.sample_time_s, case.ultimate_period_s
+            ratio = _ringing(e, ts, tu) / _ringing(e_twin, ts, tu)
+            assert ratio >= VISIBLY_FAULTY**2, (index, ratio)
+            assert abs(tw.controller.Kc) < abs(cfg.controller.Kc)
+            continue
+        ratio = float(np.std(e)) / float(np.std(e_twin))
+        assert ratio >= VISIBLY_FAULTY, (index, case.cause, ratio)
         if case.cause == "stiction":
             assert tw.S == 0.0 and tw.valve == "linear" and cfg.S > 0.0
         elif case.cause == "external_disturbance":
