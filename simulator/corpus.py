@@ -233,13 +233,15 @@ def _shows(case: CorpusCase, rec: LoopRecord) -> bool:
     e, e_twin = rec.sp - rec.pv, twin.sp - twin.pv
     if case.cause == "aggressive_tuning":
         ts, tu = case.config.sample_time_s, case.ultimate_period_s
-        return _ringing(e, ts, tu) >= VISIBLY_FAULTY**2 * _ringing(e_twin, ts, tu)
+        return ringing_power(e, ts, tu) >= VISIBLY_FAULTY**2 * ringing_power(e_twin, ts, tu)
     return float(np.std(e)) >= VISIBLY_FAULTY * float(np.std(e_twin))
 
 
-def _ringing(e: np.ndarray, ts: float, tu: float) -> float:
-    """The error's power at half to twice the ultimate frequency (Hann-windowed periodogram),
-    where a loop near its stability limit rings."""
+def ringing_power(e: np.ndarray, ts: float, tu: float) -> float:
+    """The control error's power (Hann-windowed periodogram, %² summed over its bins) at half
+    to twice the ultimate frequency 1/``tu`` (``ts``, ``tu`` in s), where a loop near its
+    stability limit rings: only its ratio to another record's of the same length means
+    anything."""
     d = e - np.mean(e)
     power = np.abs(np.fft.rfft(d * np.hanning(d.size))) ** 2
     f = np.fft.rfftfreq(d.size, ts)

@@ -172,7 +172,7 @@ def test_a_faulty_corpus_window_shows_against_its_twin_without_the_fault() -> No
     error σ at least 1.3 times that of its twin (the same loop, loads, noise and set points
     with a linear valve, the well-tuned controller or no periodic load); a loop near its
     stability limit rings: 1.3² times its twin's error power around the ultimate frequency."""
-    from plantcheck.simulator.corpus import VISIBLY_FAULTY, _ringing
+    from plantcheck.simulator.corpus import VISIBLY_FAULTY, ringing_power
 
     for index in range(12):
         case, rec = draw_case(7, index)
@@ -185,7 +185,7 @@ def test_a_faulty_corpus_window_shows_against_its_twin_without_the_fault() -> No
         cfg, tw = case.config, case.twin
         if case.cause == "aggressive_tuning":
             ts, tu = cfg.sample_time_s, case.ultimate_period_s
-            ratio = _ringing(e, ts, tu) / _ringing(e_twin, ts, tu)
+            ratio = ringing_power(e, ts, tu) / ringing_power(e_twin, ts, tu)
             assert ratio >= VISIBLY_FAULTY**2, (index, ratio)
             assert abs(tw.controller.Kc) < abs(cfg.controller.Kc)
             continue
