@@ -6,7 +6,7 @@ PNG when matplotlib is present), accuracy per family; then, with ``--left-out``,
 left out one at a time: a model fitted without a family's windows, tested on that family's
 check windows, beside the full model on the same windows.
 
-    python benchmarks/cause_model_accuracy.py [--windows 16000] [--left-out] [--png FILE]
+    python benchmarks/cause_model_accuracy.py [--windows 32000] [--left-out] [--png FILE]
 
 The corpus' evidence is kept in build/corpus (the same cache ``plantcheck model fit --cache``
 fills), so a second run only fits.
@@ -85,7 +85,7 @@ def plot(table: list[tuple[float, float, int]], path: Path, ece: float) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--windows", type=int, default=16_000)
+    ap.add_argument("--windows", type=int, default=32_000)
     ap.add_argument("--left-out", action="store_true")
     ap.add_argument("--png", type=Path, default=Path(__file__).with_name("reliability.png"))
     a = ap.parse_args()

@@ -28,7 +28,7 @@ def fit_cmd(
         typer.Option(
             min=60, help="Corpus windows to fit on (calibration and check: a quarter each)."
         ),
-    ] = 16_000,
+    ] = 32_000,
     out: Annotated[
         Path | None,
         typer.Option(
@@ -46,8 +46,8 @@ def fit_cmd(
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
 
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
-    the rules' macro-F1 on the same windows) to stdout. About 9 minutes on 2 cores for the
-    default 16,000 windows (24,000 drawn in all, each fault's twin simulated beside it).
+    the rules' macro-F1 on the same windows) to stdout. About 18 minutes on 2 cores for
+    the default 32,000 windows (48,000 drawn in all, each fault's twin simulated beside it).
     """
     try:
         import lightgbm  # noqa: F401
