@@ -13,7 +13,13 @@ import math
 
 import numpy as np
 
-from plantcheck.diagnosis.signal_tools import FloatArray, detrend, fft_acf, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    detrend,
+    fft_acf,
+    hann_power,
+    noise_sigma,
+)
 
 EVIDENCE_VERSION = 4
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn."""
@@ -179,8 +185,7 @@ def spectral_evidence(e: FloatArray, ti_samples: float | None) -> dict[str, floa
     if n < 16:
         return {}
     nfft = 1 << math.ceil(math.log2(n))
-    d = e - np.mean(e)
-    power = np.abs(np.fft.rfft(d * np.hanning(n), nfft)) ** 2
+    power = hann_power(e, nfft)
     power[0] = 0.0
     total = float(power.sum())
     if total <= 0:

@@ -60,7 +60,7 @@ from plantcheck.diagnosis.iir_kernels import (
 )
 from plantcheck.diagnosis.oscillation import faster_oscillation
 from plantcheck.diagnosis.quantification_rules import Evidence, refusals
-from plantcheck.diagnosis.signal_tools import FloatArray, moving_average
+from plantcheck.diagnosis.signal_tools import FloatArray, hann_power, moving_average
 from plantcheck.diagnosis.valve_models import he_grid, kano_grid
 
 
@@ -381,7 +381,7 @@ def slow_line(u: FloatArray, max_frequency: float, prominence: float = 30.0) -> 
     """
     n = u.size
     freq = np.fft.rfftfreq(n)
-    power = np.abs(np.fft.rfft((u - u.mean()) * np.hanning(n))) ** 2
+    power = hann_power(u)
     band = np.flatnonzero((freq > 2.5 / n) & (freq < max_frequency))
     if band.size == 0:
         return None

@@ -49,6 +49,14 @@ def fast_fft_length(n: int) -> int:
     return best
 
 
+def hann_power(x: FloatArray, nfft: int | None = None) -> FloatArray:
+    """Periodogram of mean-removed ``x`` through a Hann window (Welch 1967, one segment):
+    |FFT|² at the ``nfft // 2 + 1`` frequencies ``np.fft.rfftfreq(nfft)`` (default
+    ``nfft = len(x)``), in the squared units of ``x``."""
+    power: FloatArray = np.abs(np.fft.rfft((x - np.mean(x)) * np.hanning(x.size), nfft)) ** 2
+    return power
+
+
 def fft_acf(x: FloatArray, max_lag: int | None = None) -> FloatArray:
     """Normalised (biased) autocorrelation of mean-removed ``x`` via FFT, ``acf[0] = 1``.
 

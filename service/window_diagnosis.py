@@ -78,5 +78,5 @@ def _retuning(controller: dict[str, Any]) -> TuningSettings:
     """The retuning's settings from the loop's ``controller`` configuration: its form, and
     for a level loop whether the proposal is for averaging or tight control."""
     form = {k: v for k, v in controller.items() if k != "level_control"}
-    level = controller.get("level_control", "averaging")
-    return TuningSettings(form=ControllerForm(**form), retune=RetuneParams(level_control=level))
+    level = {"level_control": controller["level_control"]} if "level_control" in controller else {}
+    return TuningSettings(form=ControllerForm(**form), retune=RetuneParams(**level))

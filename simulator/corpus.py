@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from plantcheck.diagnosis.signal_tools import hann_power
 from plantcheck.simulator.cases import (
     simc_pi_tc,
     ultimate_gain,
@@ -242,9 +243,8 @@ def ringing_power(e: np.ndarray, ts: float, tu: float) -> float:
     to twice the ultimate frequency 1/``tu`` (``ts``, ``tu`` in s), where a loop near its
     stability limit rings: only its ratio to another record's of the same length means
     anything."""
-    d = e - np.mean(e)
-    power = np.abs(np.fft.rfft(d * np.hanning(d.size))) ** 2
-    f = np.fft.rfftfreq(d.size, ts)
+    power = hann_power(e)
+    f = np.fft.rfftfreq(e.size, ts)
     return float(power[(f >= 0.5 / tu) & (f <= 2.0 / tu)].sum())
 
 

@@ -192,8 +192,8 @@ class DriftingFriction:
     valve: KanoValve | HeValve | ChoudhuryValve | BacklashValve
     spread: float
     seed: int = 0
-    _nominal: dict[str, float] = field(default_factory=dict, init=False, repr=False)
-    _rng: random.Random = field(default_factory=random.Random, init=False, repr=False)
+    _nominal: dict[str, float] = field(init=False, repr=False)
+    _rng: random.Random = field(init=False, repr=False)
     _last: float | None = field(default=None, init=False, repr=False)
     _moving: bool = field(default=False, init=False, repr=False)
 
