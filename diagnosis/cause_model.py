@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,35 @@ BoolArray = NDArray[np.bool_]
 
 MODEL_FILE = "cause_model.npz"
 """The shipped model, in the package folder ``diagnosis/models``."""
+
+
+@dataclass(frozen=True)
+class _Walk:
+    """A model's nodes laid out for walking: every leaf points to itself, so all trees take
+    the same number of steps without being sorted out; where a missing input goes is decided
+    once per node; a node's contribution cell (class × input) is its tree's class and input."""
+
+    feature: IntArray
+    threshold: FloatArray
+    missing_left: BoolArray
+    children: IntArray
+    cell: IntArray
+
+
+def _walk_layout(model: CauseModel) -> _Walk:
+    """``model``'s walk layout; each tree's nodes follow its root up to the next tree's root
+    (``plantcheck model fit`` writes them depth first, tree after tree)."""
+    n_feat = len(model.features)
+    nodes = np.arange(model.feature.size)
+    leaf = model.feature < 0
+    tree_of = np.repeat(np.arange(model.roots.size), np.diff(np.append(model.roots, nodes.size)))
+    return _Walk(
+        feature=np.where(leaf, 0, model.feature),
+        threshold=model.threshold,
+        missing_left=np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left),
+        children=np.stack([np.where(leaf, nodes, model.right), np.where(leaf, nodes, model.left)]),
+        cell=model.tree_class[tree_of] * n_feat + np.where(leaf, 0, model.feature),
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,6 +99,11 @@ class CauseModel:
             "roots": self.roots,
             "tree_class": self.tree_class,
         }
+
+    @cached_property
+    def walk(self) -> _Walk:
+        """The nodes laid out for ``decide`` (built on first use)."""
+        return _walk_layout(self)
 
 
 @dataclass(frozen=True)
@@ -119,26 +153,23 @@ def shipped_cause_model() -> CauseModel | None:
 def decide(model: CauseModel, x: FloatArray) -> Decision:
     """Walk every tree at once for the input vector ``x`` (``model.features`` order, NaN =
     not computed): raw scores per class, their Saabas contributions, and the probabilities
-    softmax(raw / temperature)."""
+    softmax(raw / temperature). The cost is a few numpy calls per level of the deepest tree,
+    whatever the number of trees; the contributions are summed once, over the whole path."""
     n_cls, n_feat = len(model.classes), len(model.features)
-    idx = model.roots.copy()
-    contrib = np.zeros((n_cls, n_feat))
-    for _ in range(model.depth):
-        f = model.feature[idx]
-        inner = f >= 0
-        if not inner.any():
-            break
-        xv = x[np.where(inner, f, 0)]
-        missing = np.isnan(xv)
-        xv = np.where(missing & model.nan_as_zero[idx], 0.0, xv)
-        go_left = np.where(np.isnan(xv), model.default_left[idx], xv <= model.threshold[idx])
-        nxt = np.where(inner, np.where(go_left, model.left[idx], model.right[idx]), idx)
-        delta = model.value[nxt] - model.value[idx]
-        cell = model.tree_class[inner] * n_feat + f[inner]
-        contrib += np.bincount(cell, weights=delta[inner], minlength=n_cls * n_feat).reshape(
-            n_cls, n_feat
-        )
-        idx = nxt
+    w = model.walk
+    idx = model.roots
+    path = [idx]
+    for _ in range(model.depth - 1):
+        xv = x[w.feature[idx]]
+        go_left = np.where(np.isnan(xv), w.missing_left[idx], xv <= w.threshold[idx])
+        idx = w.children[go_left.view(np.uint8), idx]
+        path.append(idx)
+    visited = np.concatenate(path)
+    came, went = visited[: -idx.size], visited[idx.size :]
+    steps = model.value[went] - model.value[came]
+    contrib = np.asarray(
+        np.bincount(w.cell[came], weights=steps, minlength=n_cls * n_feat), dtype=np.float64
+    ).reshape(n_cls, n_feat)
     raw = np.bincount(model.tree_class, weights=model.value[idx], minlength=n_cls).astype(
         np.float64
     )
