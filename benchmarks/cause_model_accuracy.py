@@ -6,7 +6,7 @@ PNG when matplotlib is present), accuracy per family; then, with ``--left-out``,
 left out one at a time: a model fitted without a family's windows, tested on that family's
 check windows, beside the full model on the same windows.
 
-    python benchmarks/cause_model_accuracy.py [--windows 32000] [--left-out] [--png FILE]
+    python benchmarks/cause_model_accuracy.py [--windows 64000] [--left-out] [--png FILE]
 
 The corpus' evidence is kept in build/corpus (the same cache ``plantcheck model fit --cache``
 fills), so a second run only fits.
@@ -25,6 +25,7 @@ from plantcheck.service.cause_model_fit import (
     CALIBRATION_SEED,
     CHECK_SEED,
     FIT_SEED,
+    FIT_WINDOWS,
     corpus_evidence,
     expected_calibration_error,
     export_trees,
@@ -33,6 +34,7 @@ from plantcheck.service.cause_model_fit import (
     macro_f1,
     raw_scores,
     reliability,
+    side_windows,
 )
 from plantcheck.simulator.corpus import CLASSES, FAMILIES
 
@@ -85,14 +87,14 @@ def plot(table: list[tuple[float, float, int]], path: Path, ece: float) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--windows", type=int, default=32_000)
+    ap.add_argument("--windows", type=int, default=FIT_WINDOWS)
     ap.add_argument("--left-out", action="store_true")
     ap.add_argument("--png", type=Path, default=Path(__file__).with_name("reliability.png"))
     a = ap.parse_args()
     model = shipped_cause_model()
     if model is None:
         sys.exit("no shipped model: run plantcheck model fit first")
-    small = max(60, a.windows // 4)
+    small = side_windows(a.windows)
     chk = corpus_evidence(CHECK_SEED, small, progress=say, cache=CACHE)
     p = calibrated(raw_scores(model, chk.x), model.temperature)
     pred = p.argmax(axis=1)
@@ -132,7 +134,7 @@ def main() -> None:
 def left_out(windows: int, chk: object, pred: np.ndarray) -> None:
     """Fit without each family of ``LEFT_OUT``, test on its check windows."""
     fit = corpus_evidence(FIT_SEED, windows, progress=say, cache=CACHE)
-    cal = corpus_evidence(CALIBRATION_SEED, max(60, windows // 4), progress=say, cache=CACHE)
+    cal = corpus_evidence(CALIBRATION_SEED, side_windows(windows), progress=say, cache=CACHE)
     print("left-out family          windows  full model  fitted without  drop   (accuracy)")
     for key, value in LEFT_OUT:
         keep = np.array(fit.family[key]) != value

@@ -89,15 +89,17 @@ class CauseModel:
                 "temperature": self.temperature, "meta": self.meta}  # fmt: skip
         return {
             "head": np.frombuffer(json.dumps(head).encode(), dtype=np.uint8),
-            "feature": self.feature,
+            # node indices fit 32 bits and inputs 16 (``load_cause_model`` widens them): the
+            # shipped file is half the size
+            "feature": self.feature.astype(np.int16),
             "threshold": self.threshold,
-            "left": self.left,
-            "right": self.right,
+            "left": self.left.astype(np.int32),
+            "right": self.right.astype(np.int32),
             "default_left": self.default_left,
             "nan_as_zero": self.nan_as_zero,
             "value": self.value,
-            "roots": self.roots,
-            "tree_class": self.tree_class,
+            "roots": self.roots.astype(np.int32),
+            "tree_class": self.tree_class.astype(np.int16),
         }
 
     @cached_property

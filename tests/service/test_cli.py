@@ -158,6 +158,17 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     assert model.features == FEATURE_NAMES and model.meta["library"] == "lightgbm"
 
 
+def test_model_fit_defaults_to_the_fit_modules_window_count() -> None:
+    """The CLI keeps its own copy of the default (importing the fit module would cost every
+    command's start-up numpy and scipy): the two must agree."""
+    import inspect
+
+    from plantcheck.service.cause_model_fit import FIT_WINDOWS
+    from plantcheck.service.cli_model import fit_cmd
+
+    assert inspect.signature(fit_cmd).parameters["windows"].default == FIT_WINDOWS
+
+
 def test_diagnose_decision_learned(run_cli: RunCli) -> None:
     r = run_cli("diagnose", str(EXAMPLE), "--loop-type", "flow", "--json", "--decision", "learned")
     assert r.returncode == 0, r.stderr
