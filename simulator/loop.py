@@ -212,16 +212,6 @@ class ClosedLoop:
         c = replace(self.cfg.controller, Kc=Kc, Ti_s=Ti_s)
         self.cfg = replace(self.cfg, controller=c)
 
-    def output(self, out_d: float = 0.0) -> float:
-        """The true process value (% of span) before measurement noise."""
-        p = self.cfg.process
-        if p.tau2_s > 0:
-            # (1 + z·s)·x2 with dx2/dt = (x1 - x2)/tau2: the zero read off the second lag's state
-            y = self.x2 + p.zero_s * (self.x1 - self.x2) / p.tau2_s if p.zero_s else self.x2
-        else:
-            y = self.x1
-        return self.cfg.sp + y + out_d
-
     def step(
         self, sp: float, load: float = 0.0, out_d: float = 0.0, noise: float = 0.0
     ) -> tuple[float, float, float]:
@@ -231,40 +221,78 @@ class ClosedLoop:
         ``load`` enters at the process input (% of travel), ``out_d`` at the output (% of span),
         ``noise`` is the measurement noise on PV. In manual (``auto`` False) OP holds.
         """
+        pv, op, mv = self.run([sp], [load], [out_d], [noise])
+        return pv[0], op[0], mv[0]
+
+    def run(
+        self, sp: list[float], load: list[float], out_d: list[float], noise: list[float]
+    ) -> tuple[list[float], list[float], list[float]]:
+        """Advance ``len(sp)`` samples (``step``'s inputs and outputs, one list entry per
+        sample; ``auto`` and the controller settings hold throughout). The loop keeps its
+        states in local names: a corpus window and its twin are tens of thousands of samples
+        each, and Python's attribute look-ups were most of their simulation's time."""
         cfg = self.cfg
         p = cfg.process
         c = cfg.controller
         ts = cfg.sample_time_s
-        pv_meas = self.output(out_d) + noise
-        if self.a_filter:
-            prev = pv_meas if self.pv_filtered is None else self.pv_filtered
-            pv_meas = self.pv_filtered = self.a_filter * prev + (1.0 - self.a_filter) * pv_meas
-        e = sp - pv_meas
-        if self.auto:
-            u_unsat = self.integral + c.Kc * e
-            u = min(max(u_unsat, c.op_min), c.op_max)
-            # clamping anti-windup: integrate only when not pushing further into a limit
-            if (
-                u == u_unsat
-                or (u_unsat > c.op_max and e * c.Kc < 0)
-                or (u_unsat < c.op_min and e * c.Kc > 0)
-            ):
-                self.integral += c.Kc * ts / c.Ti_s * e
-        else:  # manual: OP frozen at its last value; bumpless return to auto
-            u = min(max(self.integral, c.op_min), c.op_max)
-        m = self.valve.step(u)
-        if self.delay:
-            u_del = self.queue[0] - cfg.u0 + load
-            self.queue.append(m)
+        kc, op_min, op_max, u0, sp0 = c.Kc, c.op_min, c.op_max, cfg.u0, cfg.sp
+        ki = c.Kc * ts / c.Ti_s
+        auto, delay, queue, valve_step = self.auto, self.delay, self.queue, self.valve.step
+        fopdt, lag2, zero = p.kind == "fopdt", p.tau2_s > 0, p.zero_s
+        a1, a2, tau2 = self.a1, self.a2, p.tau2_s
+        b1, b2, b_int = p.K * (1 - a1), 1 - a2, p.K * ts
+        a_filter, pv_filtered = self.a_filter, self.pv_filtered
+        x1, x2, integral = self.x1, self.x2, self.integral
+        pvs: list[float] = []
+        ops: list[float] = []
+        mvs: list[float] = []
+        for sp_k, load_k, out_k, noise_k in zip(sp, load, out_d, noise, strict=True):
+            # the true process value: (1 + z·s)·x2 with dx2/dt = (x1 - x2)/tau2, the zero
+            # read off the second lag's state
+            y = (x2 + zero * (x1 - x2) / tau2 if zero else x2) if lag2 else x1
+            pv_meas = sp0 + y + out_k + noise_k
+            if a_filter:
+                prev = pv_meas if pv_filtered is None else pv_filtered
+                pv_meas = pv_filtered = a_filter * prev + (1.0 - a_filter) * pv_meas
+            e = sp_k - pv_meas
+            if auto:
+                u_unsat = integral + kc * e
+                u = min(max(u_unsat, op_min), op_max)
+                # clamping anti-windup: integrate only when not pushing further into a limit
+                if (
+                    u == u_unsat
+                    or (u_unsat > op_max and e * kc < 0)
+                    or (u_unsat < op_min and e * kc > 0)
+                ):
+                    integral += ki * e
+            else:  # manual: OP frozen at its last value; bumpless return to auto
+                u = min(max(integral, op_min), op_max)
+            m = valve_step(u)
+            if delay:
+                u_del = queue[0] - u0 + load_k
+                queue.append(m)
+            else:
+                u_del = m - u0 + load_k
+            if fopdt:
+                x1 = a1 * x1 + b1 * u_del
+                if lag2:
+                    x2 = a2 * x2 + b2 * x1
+            else:
+                x1 = x1 + b_int * u_del
+            pvs.append(pv_meas)
+            ops.append(u)
+            mvs.append(m)
+        self.x1, self.x2, self.integral, self.pv_filtered = x1, x2, integral, pv_filtered
+        return pvs, ops, mvs
+
+    def output(self, out_d: float = 0.0) -> float:
+        """The true process value (% of span) before measurement noise."""
+        p = self.cfg.process
+        if p.tau2_s > 0:
+            y = self.x2 + p.zero_s * (self.x1 - self.x2) / p.tau2_s if p.zero_s else self.x2
         else:
-            u_del = m - cfg.u0 + load
-        if p.kind == "fopdt":
-            self.x1 = self.a1 * self.x1 + p.K * (1 - self.a1) * u_del
-            if p.tau2_s > 0:
-                self.x2 = self.a2 * self.x2 + (1 - self.a2) * self.x1
-        else:
-            self.x1 = self.x1 + p.K * ts * u_del
-        return pv_meas, u, m
+            y = self.x1
+        return self.cfg.sp + y + out_d
 
 
 def recorded_pv(
@@ -309,12 +337,8 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     for t_step, value in cfg.sp_steps:
         sp[t >= t_step + cfg.warmup_samples * ts] = value
 
-    loop = ClosedLoop(cfg)
-    pv = np.empty(n_total)
-    op = np.empty(n_total)
-    mv = np.empty(n_total)
-    for k in range(n_total):
-        pv[k], op[k], mv[k] = loop.step(sp[k], load[k], out_d[k], noise[k])
+    runs = ClosedLoop(cfg).run(sp.tolist(), load.tolist(), out_d.tolist(), noise.tolist())
+    pv, op, mv = (np.array(v, dtype=np.float64) for v in runs)
     if cfg.mv_noise_std:
         mv = mv + rng.normal(0.0, cfg.mv_noise_std, n_total)
     keep = slice(cfg.warmup_samples, n_total)

@@ -128,3 +128,28 @@ def test_a_loop_carries_another_loops_cycle_downstream() -> None:
     assert abs(v[11, 1, 1] - 50.0) < 0.5
     load = -2.0 * dev_a
     assert v[25, 1, 1] - 50.0 == pytest.approx(load[21], rel=0.3)
+
+
+def test_a_loop_stepped_sample_by_sample_records_what_the_batch_run_does() -> None:
+    """``ClosedLoop.step`` (the live plant) and ``simulate_loop`` (records, the corpus) are one
+    model: a sticky valve with drifting friction on a second-order process with a zero and
+    dead time, a PV filter, an output limit and noise give the same samples to the last bit."""
+    from plantcheck.simulator.loop import simulate_loop
+
+    cfg = LoopConfig(
+        process=Process("fopdt", K=1.5, tau_s=20.0, tau2_s=6.0, zero_s=-3.0, theta_s=4.0),
+        controller=PIController(Kc=0.6, Ti_s=22.0, op_max=58.0),
+        valve="kano", S=3.0, J=1.0, friction_spread=0.2, noise_std=0.1, pv_filter_s=2.0,
+        sp_steps=((150.0, 53.0),), n_samples=400, warmup_samples=0, seed=5,
+    )  # fmt: skip
+    rec = simulate_loop(cfg)
+    rng = np.random.default_rng(cfg.seed)
+    noise = rng.normal(0.0, cfg.noise_std, cfg.n_samples)
+    loop = ClosedLoop(cfg)
+    sp = np.where(np.arange(cfg.n_samples) * cfg.sample_time_s >= 150.0, 53.0, 50.0)
+    stepped = np.array(
+        [loop.step(float(s), 0.0, 0.0, float(v)) for s, v in zip(sp, noise, strict=True)]
+    )
+    np.testing.assert_array_equal(stepped[:, 0], rec.pv)
+    np.testing.assert_array_equal(stepped[:, 1], rec.op)
+    np.testing.assert_array_equal(stepped[:, 2], rec.mv)
