@@ -18,6 +18,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.signal import lfilter
 
 from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.valves import (
@@ -164,12 +165,8 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
     if d.filtered_noise_std:
         a = math.exp(-ts / d.filtered_noise_tau_s)
         w = rng.normal(0.0, d.filtered_noise_std * math.sqrt(1 - a * a), t.size)
-        x = np.empty_like(t)
-        acc = 0.0
-        for k in range(t.size):
-            acc = a * acc + w[k]
-            x[k] = acc
-        out += x
+        # x[k] = a·x[k-1] + w[k], the same sums in the same order as a loop would make them
+        out += lfilter([1.0], [1.0, -a], w)
     for t_step, size in d.steps:
         out += np.where(t >= t_step, size, 0.0)
     return out
