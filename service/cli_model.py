@@ -48,7 +48,7 @@ def fit_cmd(
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
 
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
-    the rules' macro-F1 on the same windows) to stdout. About 18 minutes on 2 cores for
+    the rules' macro-F1 on the same windows) to stdout. About 20 minutes on 2 cores for
     the default 64,000 windows (80,000 drawn in all, each fault's twin simulated beside it);
     with ``--cache``, a second run only fits (a minute).
     """
