@@ -89,8 +89,7 @@ class CauseModel:
                 "temperature": self.temperature, "meta": self.meta}  # fmt: skip
         return {
             "head": np.frombuffer(json.dumps(head).encode(), dtype=np.uint8),
-            # node indices fit 32 bits and inputs 16 (``load_cause_model`` widens them): the
-            # shipped file is half the size
+            # node indices fit 32 bits and inputs 16 (``load_cause_model`` widens them again)
             "feature": self.feature.astype(np.int16),
             "threshold": self.threshold,
             "left": self.left.astype(np.int32),

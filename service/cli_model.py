@@ -50,7 +50,7 @@ def fit_cmd(
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
     the rules' macro-F1 on the same windows) to stdout. About 20 minutes on 2 cores for
     the default 64,000 windows (80,000 drawn in all, each fault's twin simulated beside it);
-    with ``--cache``, a second run only fits (a minute).
+    with ``--cache``, a second run only fits (under a minute).
     """
     try:
         import lightgbm  # noqa: F401
