@@ -32,13 +32,15 @@ MODEL_FILE = "cause_model.npz"
 class _Walk:
     """A model's nodes laid out for walking: every leaf points to itself, so all trees take
     the same number of steps without being sorted out; where a missing input goes is decided
-    once per node; a node's contribution cell (class × input) is its tree's class and input."""
+    once per node; a node's contribution cell (class × input) is its tree's class and input;
+    ``base`` is each class's sum of its trees' root values, the same for every input."""
 
     feature: IntArray
     threshold: FloatArray
     missing_left: BoolArray
     children: IntArray
     cell: IntArray
+    base: FloatArray
 
 
 def _walk_layout(model: CauseModel) -> _Walk:
@@ -54,6 +56,9 @@ def _walk_layout(model: CauseModel) -> _Walk:
         missing_left=np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left),
         children=np.stack([np.where(leaf, nodes, model.right), np.where(leaf, nodes, model.left)]),
         cell=model.tree_class[tree_of] * n_feat + np.where(leaf, 0, model.feature),
+        base=np.bincount(
+            model.tree_class, weights=model.value[model.roots], minlength=len(model.classes)
+        ).astype(np.float64),
     )
 
 
@@ -174,10 +179,7 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
     raw = np.bincount(model.tree_class, weights=model.value[idx], minlength=n_cls).astype(
         np.float64
     )
-    base = np.bincount(model.tree_class, weights=model.value[model.roots], minlength=n_cls).astype(
-        np.float64
-    )
-    return Decision(calibrated(raw, model.temperature), raw, base, contrib)
+    return Decision(calibrated(raw, model.temperature), raw, w.base.copy(), contrib)
 
 
 def calibrated(raw: FloatArray, temperature: float) -> FloatArray:

@@ -282,15 +282,6 @@ class ClosedLoop:
         self.x1, self.x2, self.integral, self.pv_filtered = x1, x2, integral, pv_filtered
         return pvs, ops, mvs
 
-    def output(self, out_d: float = 0.0) -> float:
-        """The true process value (% of span) before measurement noise."""
-        p = self.cfg.process
-        if p.tau2_s > 0:
-            y = self.x2 + p.zero_s * (self.x1 - self.x2) / p.tau2_s if p.zero_s else self.x2
-        else:
-            y = self.x1
-        return self.cfg.sp + y + out_d
-
 
 def recorded_pv(
     pv: FloatArray, quantum: float = 0.0, compression: float = 0.0, interpolated: bool = False
