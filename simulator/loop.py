@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
@@ -122,6 +123,11 @@ class LoopConfig:
     pv_filter_s: float = 0.0
     """Transmitter damping / DCS PV filter time constant (s): the controller and the record
     see the filtered measurement (0: none)."""
+    characteristic: Literal["linear", "equal_percentage", "quick_opening"] = "linear"
+    """The valve's inherent flow characteristic, scaled to slope 1 at ``u0`` (so a tuning for
+    the linear loop holds at the operating point and the gain changes away from it)."""
+    rangeability: float = 30.0
+    """Equal-percentage rangeability R: flow ∝ R^(x/100 - 1)."""
 
 
 @dataclass(frozen=True)
@@ -240,6 +246,7 @@ class ClosedLoop:
         b1, b2, b_int = p.K * (1 - a1), 1 - a2, p.K * ts
         a_filter, pv_filtered = self.a_filter, self.pv_filtered
         x1, x2, integral = self.x1, self.x2, self.integral
+        flow = _flow_characteristic(cfg)
         pvs: list[float] = []
         ops: list[float] = []
         mvs: list[float] = []
@@ -265,11 +272,12 @@ class ClosedLoop:
             else:  # manual: OP frozen at its last value; bumpless return to auto
                 u = min(max(integral, op_min), op_max)
             m = valve_step(u)
+            q = flow(m) if flow is not None else m
             if delay:
                 u_del = queue[0] - u0 + load_k
-                queue.append(m)
+                queue.append(q)
             else:
-                u_del = m - u0 + load_k
+                u_del = q - u0 + load_k
             if fopdt:
                 x1 = a1 * x1 + b1 * u_del
                 if lag2:
@@ -281,6 +289,28 @@ class ClosedLoop:
             mvs.append(m)
         self.x1, self.x2, self.integral, self.pv_filtered = x1, x2, integral, pv_filtered
         return pvs, ops, mvs
+
+
+def _flow_characteristic(cfg: LoopConfig) -> Callable[[float], float] | None:
+    """The process input (% of travel equivalent) for a stem position: the valve's inherent
+    characteristic, shifted and scaled to pass through ``u0`` with slope 1; None when linear."""
+    u0 = cfg.u0
+    if cfg.characteristic == "equal_percentage":
+        r = cfg.rangeability
+        scale = 100.0 / math.log(r)
+
+        def eq(x: float) -> float:
+            return u0 + scale * (r ** ((x - u0) / 100.0) - 1.0)
+
+        return eq
+    if cfg.characteristic == "quick_opening":
+        root = math.sqrt(max(u0, 1.0))
+
+        def quick(x: float) -> float:
+            return u0 + 2.0 * root * (math.sqrt(max(x, 0.0)) - root)
+
+        return quick
+    return None
 
 
 def recorded_pv(

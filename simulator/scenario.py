@@ -120,11 +120,16 @@ class ControllerSpec(_Strict):
 
 
 class ValveSpec(_Strict):
-    """Valve friction: ``linear`` (none), ``kano`` or ``he`` with S, J in % of travel."""
+    """Valve friction: ``linear`` (none), ``kano`` or ``he`` with S, J in % of travel; and
+    its inherent flow characteristic."""
 
     model: Literal["linear", "kano", "he"] = "linear"
     S: float = Field(0.0, ge=0, le=50)
     J: float = Field(0.0, ge=0, le=50)
+    characteristic: Literal["linear", "equal_percentage", "quick_opening"] = "linear"
+    """Flow against stem position, scaled to slope 1 at ``u0`` (the tuning holds there)."""
+    rangeability: float = Field(30.0, gt=1, le=200)
+    """Equal-percentage rangeability R (flow ∝ R^(x/100 − 1)); ignored otherwise."""
 
 
 class PositionerSpec(_Strict):
@@ -215,6 +220,8 @@ class LoopSpec(_Strict):
             valve=v.model,
             S=v.S,
             J=v.J,
+            characteristic=v.characteristic,
+            rangeability=v.rangeability,
             noise_std=self.noise_std,
             sp=self.sp,
             u0=self.u0,

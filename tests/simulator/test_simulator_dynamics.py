@@ -3,6 +3,8 @@ oscillation period at the ultimate gain; and the on-line plant against the batch
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from simhelpers import START
@@ -153,3 +155,28 @@ def test_a_loop_stepped_sample_by_sample_records_what_the_batch_run_does() -> No
     np.testing.assert_array_equal(stepped[:, 0], rec.pv)
     np.testing.assert_array_equal(stepped[:, 1], rec.op)
     np.testing.assert_array_equal(stepped[:, 2], rec.mv)
+
+
+@pytest.mark.parametrize(
+    ("characteristic", "more_op"),
+    [("linear", 0), ("equal_percentage", -1), ("quick_opening", 1)],
+)
+def test_a_valve_characteristic_changes_the_gain_away_from_the_operating_point(
+    characteristic: str, more_op: int
+) -> None:
+    """Slope 1 at ``u0``, so the loop is the linear one there; above it an equal-percentage
+    valve gives more flow per % of travel (a set-point rise needs less OP than through a linear
+    valve) and a quick-opening valve less (it needs more)."""
+    from plantcheck.simulator.loop import simulate_loop
+
+    base = LoopConfig(
+        process=Process("fopdt", K=1.0, tau_s=10.0, theta_s=1.0),
+        controller=PIController(Kc=0.5, Ti_s=10.0),
+        sp_steps=((20.0, 70.0),), u0=40.0, n_samples=300, warmup_samples=0,
+    )  # fmt: skip
+    linear = simulate_loop(base)
+    rec = simulate_loop(replace(base, characteristic=characteristic, rangeability=30.0))  # type: ignore[arg-type]
+    assert rec.pv[10] == pytest.approx(50.0, abs=1e-9)  # at u0 the characteristic is neutral
+    assert rec.pv[-1] == pytest.approx(70.0, abs=0.05)  # the controller still gets there
+    np.testing.assert_array_equal(rec.mv, rec.op)  # MV is the stem, not the flow
+    assert np.sign(round(rec.op[-1] - linear.op[-1], 3)) == more_op
