@@ -27,6 +27,7 @@ from plantcheck.diagnosis.controller_change import (
 )
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import (
+    correlation_evidence,
     evidence_vector,
     shape_evidence,
     spectral_evidence,
@@ -951,6 +952,7 @@ def _evidence(run: _Run) -> dict[str, float | None]:
     whole = run.pi_window
     ti_whole = whole.ti_s / run.ts if whole is not None and whole.ti_s else None
     ev.update(spectral_evidence(win.sp - win.pv, ti_whole))
+    ev.update(correlation_evidence(win.sp - win.pv, win.op))
     for name, res in run.tests.items():
         if name in FEATURE_TESTS:
             ev[name] = res.value

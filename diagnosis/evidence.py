@@ -16,12 +16,13 @@ import numpy as np
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     detrend,
+    fast_fft_length,
     fft_acf,
     hann_power,
     noise_sigma,
 )
 
-EVIDENCE_VERSION = 4
+EVIDENCE_VERSION = 5
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn."""
 
 FEATURES: dict[str, str] = {
@@ -86,6 +87,31 @@ FEATURES: dict[str, str] = {
     "a square or triangular cycle)",
     "spectral_flatness": "geometric over arithmetic mean of the error's power spectrum (white "
     "noise 0.56 with a Hann window, a pure cycle near 0)",
+    "error_lag1": "the error's autocorrelation at one sample (white noise 0, slow moves near 1)",
+    "log_error_acf_samples": "log10 of the error's correlation time in samples (its ACF, over "
+    "lag 1's, below 1/e)",
+    "log_op_acf_samples": "log10 of OP's correlation time in samples",
+    "op_error_acf_ratio": "log10 of OP's correlation time over the error's: a loop that rejects "
+    "its loads moves OP slowly while the error stays short",
+    "error_acf_min": "the deepest the error's ACF falls within four times its first zero lag "
+    "(a well-damped loop's undershoot; none where the error only decays)",
+    "error_acf_shape": "the lag the error's ACF falls below 0.5 over the lag it falls below 0.1 "
+    "(an exponential decay 0.30, a cut-off sooner)",
+    "error_acf_2": "the error's ACF at twice its correlation time",
+    "error_acf_3": "the error's ACF at three times its correlation time",
+    "error_acf_5": "the error's ACF at five times its correlation time",
+    "op_acf_min": "the deepest OP's ACF falls within four times its first zero lag",
+    "op_acf_2": "OP's ACF at twice its correlation time",
+    "op_acf_3": "OP's ACF at three times its correlation time",
+    "op_acf_5": "OP's ACF at five times its correlation time",
+    "op_error_ccf_0": "OP's and the error's correlation at lag 0, signed against its peak "
+    "(the controller's direction taken out)",
+    "op_error_ccf_peak": "the largest |correlation| of the error with OP earlier (lags 0 to ten "
+    "correlation times)",
+    "op_error_ccf_lag": "log10 of (that lag + 1) over the error's correlation time",
+    "error_op_ccf_peak": "the largest |correlation| of OP with the error earlier (OP answering "
+    "the error)",
+    "error_op_ccf_lag": "log10 of (that lag + 1) over the error's correlation time",
 }
 """Each evidence entry's name and meaning, in the order of the model's input vector."""
 
@@ -211,6 +237,73 @@ def spectral_evidence(e: FloatArray, ti_samples: float | None) -> dict[str, floa
         for b in range(1, len(BAND_EDGES)):
             out[f"error_band_{b}"] = float(cum[idx[b]] - cum[idx[b - 1]]) / total
         out["peak_f_ti"] = math.log10(max(float(f_ti[k0]), 1e-6))
+    return out
+
+
+def _first_below(r: FloatArray, level: float) -> int:
+    """First lag (samples, ``r[0]`` being lag 1) where ``r`` falls below ``level``; one past
+    its end if never."""
+    below = np.flatnonzero(r < level)
+    return int(below[0]) + 1 if below.size else int(r.size) + 1
+
+
+def _acf_shape(r: FloatArray, name: str) -> tuple[float | None, dict[str, float | None]]:
+    """The correlation time (samples) of ACF ``r`` (lags from 1, over lag 1's value) and the
+    entries of its shape: its deepest undershoot and its values at 2, 3 and 5 times that."""
+    t = _first_below(r, 1.0 / math.e)
+    zero = _first_below(r, 0.0)
+    out: dict[str, float | None] = {f"{name}_min": float(np.min(r[: min(r.size, 4 * zero)]))}
+    for m in (2, 3, 5):
+        out[f"{name}_{m}"] = float(r[m * t - 1]) if m * t <= r.size else None
+    return float(t), out
+
+
+def correlation_evidence(e: FloatArray, op: FloatArray) -> dict[str, float | None]:
+    """How the control error and OP correlate in time, over the whole window and free of its
+    time scale: each one's correlation time and the shape of its autocorrelation (the decay
+    of a sluggish loop, the undershoot of a well-damped one, the cut-off of a dead-time
+    dominant one: Harris 1989 reads the error's ACF against the dead time), how much longer
+    OP stays correlated than the error (the share of a load the loop rejects), and where the
+    error and OP correlate most (Box & Jenkins 1970's cross-correlation, unwhitened).
+
+    Autocorrelations are over lag 1's value, so measurement noise (white, all at lag 0)
+    changes the shape little. Both signals are detrended first."""
+    n = int(e.size)
+    if n < 32:
+        return {}
+    ed, od = detrend(e), detrend(op)
+    ed, od = ed - ed.mean(), od - od.mean()
+    nfft = fast_fft_length(2 * n)
+    fe, fo = np.fft.rfft(ed, nfft), np.fft.rfft(od, nfft)
+    see, soo = float(ed @ ed), float(od @ od)
+    if see <= 0 or soo <= 0:
+        return {}
+    acf_e = np.fft.irfft(fe.real**2 + fe.imag**2, nfft)[: n // 2] / see
+    acf_o = np.fft.irfft(fo.real**2 + fo.imag**2, nfft)[: n // 2] / soo
+    out: dict[str, float | None] = {"error_lag1": float(acf_e[1])}
+    if acf_e[1] <= 0 or acf_o[1] <= 0:
+        return out
+    re, ro = acf_e[1:] / acf_e[1], acf_o[1:] / acf_o[1]
+    te, shape_e = _acf_shape(re, "error_acf")
+    to, shape_o = _acf_shape(ro, "op_acf")
+    out.update(shape_e)
+    out.update(shape_o)
+    out["log_error_acf_samples"] = math.log10(te)
+    out["log_op_acf_samples"] = math.log10(to)
+    out["op_error_acf_ratio"] = math.log10(to / te)
+    out["error_acf_shape"] = _first_below(re, 0.5) / _first_below(re, 0.1)
+    # cc[k] = Σ op(t)·e(t+k): the error after OP at k >= 0, before it at k < 0 (the tail)
+    cc = np.fft.irfft(np.conj(fo) * fe, nfft) / math.sqrt(see * soo)
+    span = int(min(n // 4, 10 * te))
+    after, before = cc[: span + 1], cc[::-1][:span]
+    k = int(np.argmax(np.abs(after)))
+    out["op_error_ccf_0"] = float(after[0]) * (1.0 if after[k] >= 0 else -1.0)
+    out["op_error_ccf_peak"] = float(abs(after[k]))
+    out["op_error_ccf_lag"] = math.log10((k + 1) / te)
+    if before.size:
+        j = int(np.argmax(np.abs(before)))
+        out["error_op_ccf_peak"] = float(abs(before[j]))
+        out["error_op_ccf_lag"] = math.log10((j + 2) / te)
     return out
 
 

@@ -189,6 +189,40 @@ def test_spectral_evidence_reads_a_cycle_against_the_integral_time() -> None:
     assert sum(shares) <= 1.0 + 1e-9
 
 
+def test_correlation_evidence_reads_the_shape_and_the_order_of_error_and_op() -> None:
+    """An AR(1) error of correlation time 50 samples decays exponentially (the lag below 0.5
+    over the lag below 0.1: ln 2 / ln 10 = 0.30) with no undershoot; a damped cycle swings its
+    ACF negative; added white noise leaves the shape (the ACF is read over lag 1's); OP that
+    follows the error 20 samples later correlates with it most at that lag, whichever way the
+    controller acts, and stays correlated longer when it integrates the error."""
+    from scipy.signal import lfilter
+
+    from plantcheck.diagnosis.evidence import correlation_evidence
+
+    rng = np.random.default_rng(1)
+    n, a = 200_000, np.exp(-1 / 50)
+    e = lfilter([1.0], [1.0, -a], rng.normal(size=n))
+    op = np.concatenate([np.zeros(20), e[:-20]])
+    ev = correlation_evidence(e, op)
+    assert ev["error_acf_shape"] == pytest.approx(np.log(2) / np.log(10), abs=0.05)
+    assert 10 ** ev["log_error_acf_samples"] == pytest.approx(51, rel=0.15)
+    assert ev["error_acf_min"] > -0.1 and ev["error_lag1"] > 0.95
+    assert ev["error_op_ccf_peak"] > 0.95
+    assert 10 ** ev["error_op_ccf_lag"] * 50 == pytest.approx(21, rel=0.1)
+    assert ev["op_error_ccf_0"] == pytest.approx(a**20, abs=0.03)
+    flipped = correlation_evidence(e, -op)
+    assert flipped["op_error_ccf_0"] == pytest.approx(ev["op_error_ccf_0"], abs=1e-12)
+    noisy = correlation_evidence(e + 0.5 * np.std(e) * rng.normal(size=n), op)
+    assert noisy["error_acf_shape"] == pytest.approx(ev["error_acf_shape"], abs=0.05)
+    assert noisy["error_lag1"] < 0.85
+    integral = correlation_evidence(e, np.cumsum(e))
+    assert integral["op_error_acf_ratio"] > 0.5  # OP correlated over 3x the error's time
+    r = 0.98 * np.exp(2j * np.pi / 40)
+    cycle = lfilter([1.0], [1.0, -2 * r.real, abs(r) ** 2], rng.normal(size=n))
+    assert correlation_evidence(cycle, op)["error_acf_min"] < -0.5
+    assert correlation_evidence(np.zeros(10), np.zeros(10)) == {}
+
+
 def test_a_faulty_corpus_window_shows_against_its_twin_without_the_fault() -> None:
     """Corpus version 7: a window labelled stiction, sluggish or external disturbance has an
     error σ at least 1.3 times that of its twin (the same loop, loads, noise and set points
