@@ -22,7 +22,7 @@ from plantcheck.diagnosis.signal_tools import (
     noise_sigma,
 )
 
-EVIDENCE_VERSION = 5
+EVIDENCE_VERSION = 6
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn."""
 
 FEATURES: dict[str, str] = {
@@ -150,15 +150,19 @@ def window_evidence(
 
 
 def _kurtosis(x: FloatArray) -> float:
+    # products, not d**4: numpy's power by an integer other than 2 calls pow() per element,
+    # fifteen times slower (0.17 ms on 3,600 samples)
     d = x - np.mean(x)
-    v = float(np.mean(d * d))
-    return float(np.mean(d**4)) / (v * v) if v > 0 else math.nan
+    d2 = d * d
+    v = float(np.mean(d2))
+    return float(np.mean(d2 * d2)) / (v * v) if v > 0 else math.nan
 
 
 def _skew(x: FloatArray) -> float:
     d = x - np.mean(x)
-    v = float(np.mean(d * d))
-    return abs(float(np.mean(d**3))) / v**1.5 if v > 0 else math.nan
+    d2 = d * d
+    v = float(np.mean(d2))
+    return abs(float(np.mean(d2 * d))) / v**1.5 if v > 0 else math.nan
 
 
 def _acf_time(x: FloatArray) -> float | None:
