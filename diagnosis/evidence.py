@@ -251,7 +251,7 @@ def _first_below(r: FloatArray, level: float) -> int:
     return int(below[0]) + 1 if below.size else int(r.size) + 1
 
 
-def _acf_shape(r: FloatArray, name: str) -> tuple[float | None, dict[str, float | None]]:
+def _acf_shape(r: FloatArray, name: str) -> tuple[float, dict[str, float | None]]:
     """The correlation time (samples) of ACF ``r`` (lags from 1, over lag 1's value) and the
     entries of its shape: its deepest undershoot and its values at 2, 3 and 5 times that."""
     t = _first_below(r, 1.0 / math.e)

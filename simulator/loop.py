@@ -296,11 +296,11 @@ def _flow_characteristic(cfg: LoopConfig) -> Callable[[float], float] | None:
     characteristic, shifted and scaled to pass through ``u0`` with slope 1; None when linear."""
     u0 = cfg.u0
     if cfg.characteristic == "equal_percentage":
-        r = cfg.rangeability
-        scale = 100.0 / math.log(r)
+        log_r = math.log(cfg.rangeability)
+        scale = 100.0 / log_r
 
         def eq(x: float) -> float:
-            return u0 + scale * (r ** ((x - u0) / 100.0) - 1.0)
+            return u0 + scale * (math.exp(log_r * (x - u0) / 100.0) - 1.0)
 
         return eq
     if cfg.characteristic == "quick_opening":
