@@ -84,6 +84,10 @@ class Disturbance:
     steps: tuple[tuple[float, float], ...] = ()
 
 
+FlowCharacteristic = Literal["linear", "equal_percentage", "quick_opening"]
+"""A valve's inherent flow characteristic (``LoopConfig.characteristic``)."""
+
+
 @dataclass(frozen=True)
 class LoopConfig:
     """Everything that defines one simulated loop run."""
@@ -123,7 +127,7 @@ class LoopConfig:
     pv_filter_s: float = 0.0
     """Transmitter damping / DCS PV filter time constant (s): the controller and the record
     see the filtered measurement (0: none)."""
-    characteristic: Literal["linear", "equal_percentage", "quick_opening"] = "linear"
+    characteristic: FlowCharacteristic = "linear"
     """The valve's inherent flow characteristic, scaled to slope 1 at ``u0`` (so a tuning for
     the linear loop holds at the operating point and the gain changes away from it)."""
     rangeability: float = 30.0

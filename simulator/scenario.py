@@ -20,7 +20,7 @@ from plantcheck.core.names import NAME_PATTERN
 from plantcheck.core.toml_config import load_toml, parse_toml
 from plantcheck.core.vocabulary import LoopType
 from plantcheck.simulator.actuator import ActuatorSpec
-from plantcheck.simulator.loop import LoopConfig, PIController, Process
+from plantcheck.simulator.loop import FlowCharacteristic, LoopConfig, PIController, Process
 
 SIGNALS = ("SP", "PV", "OP", "MV", "Mode")
 """Signals each loop serves, in register order."""
@@ -126,7 +126,7 @@ class ValveSpec(_Strict):
     model: Literal["linear", "kano", "he"] = "linear"
     S: float = Field(0.0, ge=0, le=50)
     J: float = Field(0.0, ge=0, le=50)
-    characteristic: Literal["linear", "equal_percentage", "quick_opening"] = "linear"
+    characteristic: FlowCharacteristic = "linear"
     """Flow against stem position, scaled to slope 1 at ``u0`` (the tuning holds there)."""
     rangeability: float = Field(30.0, gt=1, le=200)
     """Equal-percentage rangeability R (flow ∝ R^(x/100 − 1)); ignored otherwise."""
