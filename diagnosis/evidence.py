@@ -165,12 +165,20 @@ def _skew(x: FloatArray) -> float:
     return abs(float(np.mean(d2 * d))) / v**1.5 if v > 0 else math.nan
 
 
+def _first_below(r: FloatArray, level: float) -> int:
+    """First lag (samples, ``r[0]`` being lag 1) where ``r`` falls below ``level``; one past
+    its end if never."""
+    below = np.flatnonzero(r < level)
+    return int(below[0]) + 1 if below.size else int(r.size) + 1
+
+
 def _acf_time(x: FloatArray) -> float | None:
     """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never."""
     if x.size < 8 or not np.any(x - np.mean(x)):
         return None
-    below = np.flatnonzero(fft_acf(x, max_lag=x.size) < 1.0 / math.e)
-    return float(below[0]) if below.size else None
+    acf = fft_acf(x, max_lag=x.size)
+    lag = _first_below(acf[1:], 1.0 / math.e)
+    return float(lag) if lag < acf.size else None
 
 
 def shape_evidence(
@@ -242,13 +250,6 @@ def spectral_evidence(e: FloatArray, ti_samples: float | None) -> dict[str, floa
             out[f"error_band_{b}"] = float(cum[idx[b]] - cum[idx[b - 1]]) / total
         out["peak_f_ti"] = math.log10(max(float(f_ti[k0]), 1e-6))
     return out
-
-
-def _first_below(r: FloatArray, level: float) -> int:
-    """First lag (samples, ``r[0]`` being lag 1) where ``r`` falls below ``level``; one past
-    its end if never."""
-    below = np.flatnonzero(r < level)
-    return int(below[0]) + 1 if below.size else int(r.size) + 1
 
 
 def _acf_shape(r: FloatArray, name: str) -> tuple[float, dict[str, float | None]]:
