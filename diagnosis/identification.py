@@ -152,7 +152,11 @@ def _sse_grid(
     xc = np.zeros((x.shape[0], sum(hi - lo for lo, hi in spans)))
     at = 0
     for lo, hi in spans:
-        xc[:, at + max(0, -lo) : at + hi - lo] = x[:, max(0, lo) : hi]
+        # a span reaching back past the window's start is 0 there (x before it is 0); one
+        # that ends before the start (a short first segment read at a long dead time) is 0
+        # throughout
+        src = x[:, max(0, lo) : max(0, hi)]
+        xc[:, at + max(0, -lo) : at + max(0, -lo) + src.shape[1]] = src
         at += hi - lo
     xc -= x.mean(axis=1, keepdims=True)
     offsets = np.concatenate([[0], np.cumsum(lengths + reach)[:-1]])
