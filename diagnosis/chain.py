@@ -29,11 +29,13 @@ from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import (
     correlation_evidence,
     evidence_vector,
+    process_evidence,
     shape_evidence,
     spectral_evidence,
     window_evidence,
 )
 from plantcheck.diagnosis.horch import HorchParams, horch_ccf, horch_histogram
+from plantcheck.diagnosis.identification import quick_process_fit
 from plantcheck.diagnosis.kpis import KpiParams, dead_time_for, travel, window_kpis
 from plantcheck.diagnosis.load_recovery import load_recoveries, recovery_slowness
 from plantcheck.diagnosis.oscillation import (
@@ -953,6 +955,21 @@ def _evidence(run: _Run) -> dict[str, float | None]:
     ti_whole = whole.ti_s / run.ts if whole is not None and whole.ti_s else None
     ev.update(spectral_evidence(win.sp - win.pv, ti_whole))
     ev.update(correlation_evidence(win.sp - win.pv, win.op))
+    integrating = is_integrating(run.loop_type)
+    proc = quick_process_fit(win.pv, win.op, integrating=integrating)
+    if proc is not None:
+        ok_pi = whole is not None and whole.fit >= run.p.tuning.pi_min_fit
+        ev.update(
+            process_evidence(
+                proc.K,
+                proc.tau,
+                proc.theta,
+                proc.fit,
+                whole.kc if ok_pi and whole is not None else None,
+                ti_whole if ok_pi else None,
+                integrating,
+            )
+        )
     for name, res in run.tests.items():
         if name in FEATURE_TESTS:
             ev[name] = res.value

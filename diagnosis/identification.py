@@ -257,18 +257,21 @@ def _coarse(
     integrating: bool,
     segments: list[slice],
     p: IdentificationParams,
+    samples: int = 0,
+    delay_points: int = 32,
 ) -> tuple[float, int, int]:
-    """The best (τ, θ) of a coarse grid on block means of about ``COARSE_SAMPLES``: τ and θ
-    in samples, and the grid's θ step in samples."""
+    """The best (τ, θ) of a coarse grid of ``delay_points`` dead times on block means of
+    about ``samples`` (0: ``COARSE_SAMPLES``): τ and θ in samples, and the grid's θ step in
+    samples."""
     span = sum(s.stop - s.start for s in segments)
-    b = max(1, span // COARSE_SAMPLES)
+    b = max(1, span // (samples or COARSE_SAMPLES))
     cseg = [slice(s.start // b, max(s.start // b + 1, s.stop // b)) for s in segments]
     cspan = sum(s.stop - s.start for s in cseg)
     max_d = int(min(p.max_dead_time_samples / b, max(1, p.max_dead_time_share * cspan)))
     taus = (
         np.array([0.0]) if integrating else log_grid(0.3, max(2.0, cspan / 3.0), p.time_constants)
     )
-    coarse_d = _coarse_delays(max_d)
+    coarse_d = _coarse_delays(max_d, delay_points)
     pv_b, op_b = block_means(pv, b), block_means(op, b)
     sse, _ = _sse_grid(pv_b, _regressors(op_b, taus, integrating, ts * b), coarse_d, cseg)
     i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
@@ -304,9 +307,7 @@ def _search(
     with τ from 0.6 to 1.6 times its value; every whole and quarter sample of θ around that
     best; τ from 0.85 to 1.18 times it at the best θ."""
     tau0, d0, width = _coarse(pv, op, ts, integrating, segments, p)
-    fine_d = np.unique(
-        np.round(np.linspace(max(0, d0 - width), d0 + width, min(2 * width + 1, 17)))
-    ).astype(np.int64)
+    fine_d = _fine_delays(d0, width)
     taus = np.array([0.0]) if integrating else tau0 * log_grid(0.6, 1.6, 7)
     sse, _ = _sse_grid(pv, _regressors(op, taus, integrating, ts), fine_d, segments)
     i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
@@ -339,6 +340,14 @@ def _search(
         thetas=thetas,
         sse_theta=sse_f.ravel(),
     )
+
+
+def _fine_delays(d0: int, width: int) -> NDArray[np.int64]:
+    """At most 17 whole dead times (samples) across the coarse grid's step either side of
+    its best ``d0``."""
+    return np.unique(
+        np.round(np.linspace(max(0, d0 - width), d0 + width, min(2 * width + 1, 17)))
+    ).astype(np.int64)
 
 
 def _fractional(x: NDArray[np.float64], frac: float) -> NDArray[np.float64]:
@@ -460,3 +469,55 @@ def _residual_lag1(pv: FloatArray, x: FloatArray, K: float) -> float:
     den = float(e @ e)
     rho = float(e[1:] @ e[:-1]) / den if den > 0 else 0.0
     return min(max(rho, 0.0), 0.95)
+
+
+@dataclass(frozen=True)
+class QuickProcessFit:
+    """A rough FOPDT/IPDT model for the learned decision's evidence (issue 46): K in PV
+    units per % of OP (per sample and % for an IPDT model), τ and θ in samples, ``fit`` the
+    simulated-output fit as a fraction (1 perfect, 0 no better than the mean, negative
+    worse)."""
+
+    K: float
+    tau: float
+    theta: float
+    fit: float
+
+
+QUICK = IdentificationParams(time_constants=8)
+"""The quick fit's grid: half the time constants of the full search."""
+QUICK_COARSE_SAMPLES = 250
+"""Block means of the quick fit's coarse grid: a tenth of the full identification's time."""
+
+
+def quick_process_fit(
+    pv: FloatArray, op: FloatArray, *, integrating: bool = False
+) -> QuickProcessFit | None:
+    """The process seen from OP to PV over the whole window, in about a millisecond per
+    3,600 samples: the full identification's coarse grid on ~250 block means, then its dead
+    time refined at full rate (every sample within a grid step either side, τ at 0.7, 1 and
+    1.4 times the coarse one). No set-point stretches, no sub-sample θ, no standard
+    deviations and no fit threshold: the decision learns how far to trust it (its ``fit``)
+    where ``identify_process`` would decline. None where OP does not move at all or the
+    window is shorter than the identification's minimum."""
+    pv = np.asarray(pv, dtype=np.float64)
+    op = np.asarray(op, dtype=np.float64)
+    n = pv.size
+    if n < QUICK.min_samples or float(np.ptp(op)) <= 0.0:
+        return None
+    segments = [slice(0, n)]
+    tau0, d0, width = _coarse(
+        pv, op, 1.0, integrating, segments, QUICK, samples=QUICK_COARSE_SAMPLES, delay_points=16
+    )
+    fine_d = _fine_delays(d0, width)
+    fine_taus = np.array([0.0]) if integrating else tau0 * np.array([0.7, 1.0, 1.4])
+    sse, gain = _sse_grid(pv, _regressors(op, fine_taus, integrating, 1.0), fine_d, segments)
+    i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
+    yc = pv - pv.mean()
+    yc = yc - t * (float(t @ yc) / float(t @ t))
+    total = float(yc @ yc)
+    fit = 1.0 - math.sqrt(max(float(sse[i, j]), 0.0) / total) if total > 0 else 0.0
+    return QuickProcessFit(
+        K=float(gain[i, j]), tau=float(fine_taus[i]), theta=float(fine_d[j]), fit=max(fit, -1.0)
+    )

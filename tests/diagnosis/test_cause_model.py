@@ -253,3 +253,26 @@ def test_a_faulty_corpus_window_shows_against_its_twin_without_the_fault() -> No
             assert len(tw.disturbances) < len(cfg.disturbances)
         else:
             assert abs(tw.controller.Kc) > abs(cfg.controller.Kc)
+
+
+def test_process_evidence_reads_the_controller_against_simc() -> None:
+    """A controller at the SIMC setting of the model reads 0 (log10 of the ratios); twice
+    its gain log10 2; a fifth of the integral time log10 0.2; θ is taken half a sample
+    longer (the hold), so θ 3.5 samples is SIMC's 4 (Skogestad 2003)."""
+    from plantcheck.diagnosis.evidence import process_evidence
+
+    at = process_evidence(2.0, 20.0, 3.5, 0.9, 20.0 / (2 * 2 * 4), 20.0, False)
+    assert at["kc_over_simc"] == pytest.approx(0.0, abs=1e-12)
+    assert at["ti_over_simc"] == pytest.approx(0.0, abs=1e-12)
+    assert at["dead_time_share"] == pytest.approx(4 / 24)
+    assert at["log_dead_time_samples"] == pytest.approx(np.log10(4))
+    hot = process_evidence(-2.0, 20.0, 3.5, 0.9, -2 * 20.0 / 16, 4.0, False)
+    assert hot["kc_over_simc"] == pytest.approx(np.log10(2))
+    assert hot["ti_over_simc"] == pytest.approx(np.log10(0.2))
+    level = process_evidence(0.05, 0.0, 9.5, 0.9, 1 / (0.05 * 2 * 10), 80.0, True)
+    assert level["kc_over_simc"] == pytest.approx(0.0, abs=1e-12)
+    assert level["ti_over_simc"] == pytest.approx(0.0, abs=1e-12)
+    assert level["dead_time_share"] is None
+    blind = process_evidence(0.0, 20.0, 3.5, -0.2, 1.0, 20.0, False)
+    assert "kc_over_simc" not in blind and blind["process_fit"] == -0.2
+    assert set(at) <= set(FEATURES)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plantcheck.diagnosis.identification import ProcessModel, identify_process
+from plantcheck.diagnosis.identification import ProcessModel, identify_process, quick_process_fit
 from plantcheck.diagnosis.retuning import (
     PISetting,
     RetuneParams,
@@ -286,3 +286,26 @@ def test_a_loop_diagnosed_sluggish_is_not_retuned_for_margins_its_model_misreads
     assert sluggish.json["proposed"] is None and "keep it" in sluggish.json["note"]
     assert aggressive.json["proposed"] is not None
     assert aggressive.json["predicted"]["current"]["ms"] > 2.0
+
+
+@pytest.mark.parametrize("seed", range(100, 112))
+def test_the_quick_fit_reads_gain_and_dead_time_of_a_loop_with_set_point_steps(seed: int) -> None:
+    """The learned decision's process evidence (issue 46) over the whole window, steps and
+    all: the gain within 5 %, the dead time within a sample of SIMC's effective one (half a
+    second lag counted), the time constant within a factor of two (a second lag shortens
+    it)."""
+    case = tuning_case(seed, "good", loads=0.0)
+    p, r = case.process, case.record
+    integrating = p.kind == "integrating"
+    fit = quick_process_fit(r.pv, r.op, integrating=integrating)
+    assert fit is not None and fit.fit > 0.8
+    assert pytest.approx(p.K * (case.ts if integrating else 1.0), rel=0.05) == fit.K
+    assert abs(fit.theta - case.effective_dead_time_s / case.ts) <= 1.01
+    if not integrating:
+        assert 0.5 < fit.tau / (p.tau_s / case.ts) < 2.0
+
+
+def test_the_quick_fit_declines_a_window_where_op_never_moves() -> None:
+    pv = np.random.default_rng(0).normal(50, 0.1, 2000)
+    assert quick_process_fit(pv, np.full(2000, 40.0)) is None
+    assert quick_process_fit(pv[:30], pv[:30]) is None
