@@ -89,6 +89,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--windows", type=int, default=FIT_WINDOWS)
     ap.add_argument("--left-out", action="store_true")
+    ap.add_argument(
+        "--only",
+        action="append",
+        metavar="KEY=VALUE",
+        help="leave out only these families (repeatable; default: all of LEFT_OUT)",
+    )
     ap.add_argument("--png", type=Path, default=Path(__file__).with_name("reliability.png"))
     a = ap.parse_args()
     model = shipped_cause_model()
@@ -128,15 +134,22 @@ def main() -> None:
     print(f"  windows under 300 samples: {np.mean(right[short]):.2f} ({int(short.sum())}); "
           f"300 and more: {np.mean(right[~short]):.2f}")  # fmt: skip
     if a.left_out:
-        left_out(a.windows, chk, pred)
+        only = [tuple(o.split("=", 1)) for o in a.only or []]
+        unknown = [o for o in only if o not in LEFT_OUT]
+        if unknown:
+            sys.exit(f"--only {unknown[0][0]}={unknown[0][-1]}: not one of LEFT_OUT "
+                     f"({', '.join(k + '=' + v for k, v in LEFT_OUT)})")  # fmt: skip
+        left_out(a.windows, chk, pred, tuple(only) or LEFT_OUT)  # type: ignore[arg-type]
 
 
-def left_out(windows: int, chk: object, pred: np.ndarray) -> None:
-    """Fit without each family of ``LEFT_OUT``, test on its check windows."""
+def left_out(
+    windows: int, chk: object, pred: np.ndarray, families: tuple[tuple[str, str], ...] = LEFT_OUT
+) -> None:
+    """Fit without each of ``families``, test on its check windows."""
     fit = corpus_evidence(FIT_SEED, windows, progress=say, cache=CACHE)
     cal = corpus_evidence(CALIBRATION_SEED, side_windows(windows), progress=say, cache=CACHE)
     print("left-out family          windows  full model  fitted without  drop   (accuracy)")
-    for key, value in LEFT_OUT:
+    for key, value in families:
         keep = np.array(fit.family[key]) != value
         booster = fit_trees(fit.x[keep], fit.y[keep])
         cal_keep = np.array(cal.family[key]) != value
