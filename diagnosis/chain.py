@@ -913,8 +913,9 @@ def _quantify_into(
 def _evidence(run: _Run) -> dict[str, float | None]:
     """The window's evidence (``evidence.FEATURES``): what the chain computed on it."""
     win, diag = run.win, run.diag
+    integrating = is_integrating(run.loop_type)
     ev: dict[str, float | None] = dict(
-        window_evidence(win.pv, win.op, win.sp, win.indices, is_integrating(run.loop_type))
+        window_evidence(win.pv, win.op, win.sp, win.indices, integrating)
     )
     ind = diag.indices
     for name in ("idle_index", "sp_step_slowness", "sp_step_overshoot", "load_recovery_slowness",
@@ -955,18 +956,17 @@ def _evidence(run: _Run) -> dict[str, float | None]:
     ti_whole = whole.ti_s / run.ts if whole is not None and whole.ti_s else None
     ev.update(spectral_evidence(win.sp - win.pv, ti_whole))
     ev.update(correlation_evidence(win.sp - win.pv, win.op))
-    integrating = is_integrating(run.loop_type)
     proc = quick_process_fit(win.pv, win.op, integrating=integrating)
     if proc is not None:
-        ok_pi = whole is not None and whole.fit >= run.p.tuning.pi_min_fit
+        pi_ok = whole if whole is not None and whole.fit >= run.p.tuning.pi_min_fit else None
         ev.update(
             process_evidence(
                 proc.K,
                 proc.tau,
                 proc.theta,
                 proc.fit,
-                whole.kc if ok_pi and whole is not None else None,
-                ti_whole if ok_pi else None,
+                pi_ok.kc if pi_ok is not None else None,
+                ti_whole if pi_ok is not None else None,
                 integrating,
             )
         )

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     block_means,
+    detrend,
     first_order_lags,
     log_grid,
     noise_sigma,
@@ -493,12 +494,12 @@ QUICK_COARSE_SAMPLES = 250
 def quick_process_fit(
     pv: FloatArray, op: FloatArray, *, integrating: bool = False
 ) -> QuickProcessFit | None:
-    """The process seen from OP to PV over the whole window, in about a millisecond per
-    3,600 samples: the full identification's coarse grid on ~250 block means, then its dead
-    time refined at full rate (every sample within a grid step either side, τ at 0.7, 1 and
-    1.4 times the coarse one). No set-point stretches, no sub-sample θ, no standard
-    deviations and no fit threshold: the decision learns how far to trust it (its ``fit``)
-    where ``identify_process`` would decline. None where OP does not move at all or the
+    """The process seen from OP to PV over the whole window, in 1-2 ms per 3,600 samples:
+    the full identification's coarse grid on ~250 block means, then its dead time refined at
+    full rate (every sample within a grid step either side, τ at 0.7, 1 and 1.4 times the
+    coarse one). No set-point stretches, no sub-sample θ, no standard deviations and no fit
+    threshold: the decision learns how far to trust it (its ``fit``) where
+    ``identify_process`` would decline. None where OP does not move at all or the
     window is shorter than the identification's minimum."""
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
@@ -513,9 +514,8 @@ def quick_process_fit(
     fine_taus = np.array([0.0]) if integrating else tau0 * np.array([0.7, 1.0, 1.4])
     sse, gain = _sse_grid(pv, _regressors(op, fine_taus, integrating, 1.0), fine_d, segments)
     i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)
-    t = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
-    yc = pv - pv.mean()
-    yc = yc - t * (float(t @ yc) / float(t @ t))
+    # the SSE is over PV with its level and drift projected out (``_sse_grid``): so is this
+    yc = detrend(pv)
     total = float(yc @ yc)
     fit = 1.0 - math.sqrt(max(float(sse[i, j]), 0.0) / total) if total > 0 else 0.0
     return QuickProcessFit(
