@@ -166,16 +166,29 @@ def test_workers_standby_and_collector(pg_cluster: PgCluster, tmp_path: Path, pr
 
     _wait("every loop diagnosed", all_diagnosed, 90, procs)
     t0_us = time.time_ns() // 1000
-    span_s = 6 * PERIOD_S
-    time.sleep(span_s)
+
+    def jobs_since_t0() -> list[tuple[dict[str, Any], str]]:
+        rows = _sql(url, "SELECT args, status FROM procrastinate_jobs WHERE task_name = $1", TASK)
+        return [
+            (args, r["status"])
+            for r in rows
+            if (args := json.loads(r["args"]))["enqueued_us"] >= t0_us
+        ]
+
+    time.sleep(6 * PERIOD_S)
+    # the limits follow the scheduler's measured progress, not the clock: a loaded machine
+    # enqueues fewer jobs (a batch still waiting is not queued twice) and runs them later, so
+    # the span lasts until every loop's batch was queued twice (once in 24 s of a run beside a
+    # CPU hog and two other tests)
+    _wait(
+        "every loop queued twice",
+        lambda: all(sum(n in a["loops"] for a, _ in jobs_since_t0()) >= 2 for n in loops),
+        180,
+        procs,
+    )
     counts = _diagnoses_since(url, t0_us)
     end_us = time.time_ns() // 1000
-    # the limits follow the scheduler's measured progress, not the clock: a loaded machine
-    # enqueues fewer jobs (a batch still waiting is not queued twice) and runs them later
-    jobs = [
-        (json.loads(r["args"]), r["status"])
-        for r in _sql(url, "SELECT args, status FROM procrastinate_jobs WHERE task_name = $1", TASK)
-    ]
+    jobs = [(a, st) for a, st in jobs_since_t0() if a["enqueued_us"] < end_us]
     for name in loops:
         times = counts.get(name, [])
         mine = [st for a, st in jobs if name in a["loops"] and t0_us <= a["enqueued_us"] < end_us]
