@@ -136,7 +136,16 @@ class OpcUaConnector(DeviceConnector):
     async def connect(self) -> None:
         # the session is ours: a loss ends it and run() builds a new one (module docstring)
         self.session += 1
-        client = Client(self.url, timeout=self.timeout_s, auto_reconnect=False)
+        # asyncua's health probe waits min(session timeout / 2, watchdog interval) for the
+        # server state: 1 s by default, which a loaded machine's server exceeded (the demo lost
+        # its session beside a busy process, and 130 simulated seconds with it); it now waits
+        # as long as any request does (the source's timeout_s), and probes as often
+        client = Client(
+            self.url,
+            timeout=self.timeout_s,
+            watchdog_intervall=max(1.0, self.timeout_s),
+            auto_reconnect=False,
+        )
         # 10 minutes, what servers commonly grant (asyncua asks an hour, and warns at every
         # connection when the server revises it down)
         client.session_timeout = SESSION_TIMEOUT_MS

@@ -70,10 +70,11 @@ def map_toml(
     protocol: str = "modbus",
     source: str | None = None,
     poll_interval_s: float | None = None,
+    timeout_s: float | None = None,
 ) -> str:
     """``[[source]]`` and ``[[loop]]`` tables of the service configuration for this plant,
     reading it over Modbus TCP (register addresses) or OPC UA (node ids), with the source's
-    ``poll_interval_s`` (s) when given."""
+    ``poll_interval_s`` and ``timeout_s`` (s) when given."""
     name = source or f"sim-{protocol}"
     if protocol == "opcua":
         lines = ["[[source]]", f'name = "{name}"', 'protocol = "opcua"']
@@ -95,6 +96,8 @@ def map_toml(
         ]
     if poll_interval_s is not None:
         lines.insert(-1, f"poll_interval_s = {poll_interval_s:g}")
+    if timeout_s is not None:
+        lines.insert(-1, f"timeout_s = {timeout_s:g}")
     specs = {spec.id: spec for spec in scenario.loop}
     for e in register_map(scenario):
         spec = specs[e.loop]
