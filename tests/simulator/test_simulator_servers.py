@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import math
 from datetime import timedelta
+from typing import Any
 
 import numpy as np
 import pytest
@@ -73,16 +74,31 @@ def test_modbus_client_reads_and_decodes_every_register(word_order: str, byte_or
     run_with_plant(sc, body)
 
 
+async def _subscribe(
+    client: Client, node: ua.NodeId, received: list[ua.DataValue], queue: int
+) -> Any:
+    """A subscription (50 ms publishing) that appends every data change of ``node`` to
+    ``received``, with a server queue of ``queue`` samples."""
+
+    class Handler:
+        def datachange_notification(self, node: object, val: object, data: object) -> None:
+            received.append(data.monitored_item.Value)  # type: ignore[attr-defined]
+
+    sub = await client.create_subscription(50, Handler())
+    item = ua.MonitoredItemCreateRequest(
+        ItemToMonitor=ua.ReadValueId(NodeId=node, AttributeId=ua.AttributeIds.Value),
+        MonitoringMode=ua.MonitoringMode.Reporting,
+        RequestedParameters=ua.MonitoringParameters(SamplingInterval=0, QueueSize=queue),
+    )
+    await sub.create_monitored_items([item])
+    return sub
+
+
 def test_opcua_subscription_receives_every_simulated_sample() -> None:
     sc = scenario_on_free_ports(speed=20.0)
 
     async def body(runner: PlantRunner) -> None:
         received: list[ua.DataValue] = []
-
-        class Handler:
-            def datachange_notification(self, node: object, val: object, data: object) -> None:
-                received.append(data.monitored_item.Value)  # type: ignore[attr-defined]
-
         async with Client(sc.opcua.url, timeout=5) as client:
             idx = await client.get_namespace_index("urn:plantcheck:simulator")
             pv = client.get_node(ua.NodeId("FIC102.PV", idx))
@@ -90,14 +106,7 @@ def test_opcua_subscription_receives_every_simulated_sample() -> None:
             assert browsed.nodeid == pv.nodeid
             eu = await (await pv.get_child(f"{idx}:EngineeringUnits")).read_value()
             assert eu.DisplayName.Text == "m3/h"
-            sub = await client.create_subscription(50, Handler())
-            params = ua.MonitoringParameters(SamplingInterval=0, QueueSize=100)
-            item = ua.MonitoredItemCreateRequest(
-                ItemToMonitor=ua.ReadValueId(NodeId=pv.nodeid, AttributeId=ua.AttributeIds.Value),
-                MonitoringMode=ua.MonitoringMode.Reporting,
-                RequestedParameters=params,
-            )
-            await sub.create_monitored_items([item])
+            sub = await _subscribe(client, pv.nodeid, received, 100)
             await asyncio.sleep(2.0)
             # MV is only there for loops with a positioner feedback
             assert await client.get_node(ua.NodeId("FIC701.MV", idx)).read_value() >= 0
@@ -123,22 +132,9 @@ def test_a_plant_too_fast_for_the_machine_slows_down_and_skips_no_sample() -> No
 
     async def body(runner: PlantRunner) -> None:
         received: list[ua.DataValue] = []
-
-        class Handler:
-            def datachange_notification(self, node: object, val: object, data: object) -> None:
-                received.append(data.monitored_item.Value)  # type: ignore[attr-defined]
-
         async with Client(sc.opcua.url, timeout=10) as client:
             idx = await client.get_namespace_index("urn:plantcheck:simulator")
-            sub = await client.create_subscription(50, Handler())
-            item = ua.MonitoredItemCreateRequest(
-                ItemToMonitor=ua.ReadValueId(
-                    NodeId=ua.NodeId("FIC102.PV", idx), AttributeId=ua.AttributeIds.Value
-                ),
-                MonitoringMode=ua.MonitoringMode.Reporting,
-                RequestedParameters=ua.MonitoringParameters(SamplingInterval=0, QueueSize=10_000),
-            )
-            await sub.create_monitored_items([item])
+            sub = await _subscribe(client, ua.NodeId("FIC102.PV", idx), received, 10_000)
             await asyncio.sleep(2.0)
             await sub.delete()
         assert runner.stats.yielded_s > 0, runner.status()
