@@ -76,6 +76,7 @@ class PlantRunner:
         self._admin: asyncio.Server | None = None
         self._tasks: set[asyncio.Task[None]] = set()
         self._opcua_stalled = False
+        self._yielding = False
         self.ready = asyncio.Event()
 
     # -- servers -------------------------------------------------------------------------
@@ -126,6 +127,25 @@ class PlantRunner:
         }
 
     # -- clock ---------------------------------------------------------------------------
+    def _steps_to_yield(self, due: int) -> int:
+        """Steps by which the schedule moves back before step ``due`` is taken: those beyond
+        ``MAX_OPCUA_BURST`` late while OPC UA is served (module docstring), else 0. Logs the
+        start and the end of each episode once."""
+        behind = due - self.plant.steps - MAX_OPCUA_BURST
+        if self.opcua and behind > 0:
+            if not self._yielding:
+                log.warning(
+                    "the plant runs slower than %gx: this machine cannot keep up; every sample "
+                    "is still served (status: yielded_s)",
+                    self.scenario.clock.speed,
+                )
+            self._yielding = True
+            return behind
+        if self._yielding and due - self.plant.steps <= 1:
+            log.warning("the plant keeps its speed again")
+            self._yielding = False
+        return 0
+
     async def _tick(self, due: int) -> None:
         late = due - self.plant.steps
         while self.plant.steps < due:
@@ -165,25 +185,13 @@ class PlantRunner:
         wall0 = time.monotonic()
         self.ready.set()
         try:
-            yielding = False
             while not self._stop.is_set():
                 elapsed = time.monotonic() - wall0
                 due = self.warmup_steps + int(elapsed / step_wall) + 1
-                behind = due - self.plant.steps - MAX_OPCUA_BURST
-                if self.opcua and behind > 0:
-                    wall0 += behind * step_wall
-                    self.stats.yielded_s += behind * step_wall
-                    due -= behind
-                    if not yielding:
-                        log.warning(
-                            "the plant runs slower than %gx: this machine cannot keep up; every "
-                            "sample is still served (status: yielded_s)",
-                            self.scenario.clock.speed,
-                        )
-                    yielding = True
-                elif yielding and due - self.plant.steps <= 1:
-                    log.warning("the plant keeps its speed again")
-                    yielding = False
+                back = self._steps_to_yield(due)
+                wall0 += back * step_wall
+                self.stats.yielded_s += back * step_wall
+                due -= back
                 await self._tick(due)
                 lag = time.monotonic() - wall0 - (due - 1 - self.warmup_steps) * step_wall
                 self.stats.lag_s = lag
