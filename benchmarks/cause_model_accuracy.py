@@ -97,6 +97,11 @@ def main() -> None:
     )
     ap.add_argument("--png", type=Path, default=Path(__file__).with_name("reliability.png"))
     a = ap.parse_args()
+    names = {f"{k}={v}": (k, v) for k, v in LEFT_OUT}
+    unknown = [o for o in a.only or [] if o not in names]
+    if unknown:  # before the check figures: a typo costs no wait
+        sys.exit(f"--only {unknown[0]}: not one of LEFT_OUT ({', '.join(names)})")
+    families = tuple(names[o] for o in a.only or []) or LEFT_OUT
     model = shipped_cause_model()
     if model is None:
         sys.exit("no shipped model: run plantcheck model fit first")
@@ -134,12 +139,7 @@ def main() -> None:
     print(f"  windows under 300 samples: {np.mean(right[short]):.2f} ({int(short.sum())}); "
           f"300 and more: {np.mean(right[~short]):.2f}")  # fmt: skip
     if a.left_out:
-        only = [tuple(o.split("=", 1)) for o in a.only or []]
-        unknown = [o for o in only if o not in LEFT_OUT]
-        if unknown:
-            sys.exit(f"--only {unknown[0][0]}={unknown[0][-1]}: not one of LEFT_OUT "
-                     f"({', '.join(k + '=' + v for k, v in LEFT_OUT)})")  # fmt: skip
-        left_out(a.windows, chk, pred, tuple(only) or LEFT_OUT)  # type: ignore[arg-type]
+        left_out(a.windows, chk, pred, families)
 
 
 def left_out(

@@ -29,7 +29,8 @@ if TYPE_CHECKING:
 
 DEMO_TIMEOUT_S = 10.0
 """The demo's OPC UA request and health-probe timeout (s): its simulator is a local process
-that keeps a core busy at 100x, slow to answer on a loaded machine but not gone."""
+that keeps a core busy at 100x, slow to answer on a loaded machine but not gone (a loaded
+machine's demo lost its session to asyncua's 1-s probe, and 130 simulated seconds with it)."""
 
 
 def _check_port(host: str, port: int, what: str) -> None:
@@ -233,9 +234,6 @@ def demo_config(data_dir: Path, port: int, opcua_url: str, speed: float) -> str:
     sc = load_scenario(None)
     sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"url": opcua_url})})
     sampling = sc.clock.sample_time_s / speed
-    # the simulator shares this machine and, at 100x, keeps a core busy: on a loaded machine it
-    # answered the session's health probe late and the session was rebuilt, losing 130
-    # simulated seconds; a local process that slow is busy, not gone
     tables = map_toml(sc, protocol="opcua", poll_interval_s=sampling, timeout_s=DEMO_TIMEOUT_S)
     return "\n".join(
         [
