@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import itertools
+import json
 import os
 import subprocess
 import sys
@@ -10,12 +13,13 @@ import tempfile
 import threading
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pgcluster
 import pytest
-from helpers import RunCli, free_port
+from helpers import ComputedOnce, RunCli, free_port
 from pgcluster import PgCluster
 from servicehelpers import Service, fill_store, start_service, wait_diagnosed, write_config
 
@@ -29,12 +33,54 @@ def _root_entries() -> set[str]:
     return {p.name for p in ROOT.iterdir() if not p.name.startswith(".")}
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+SHARED_SERVICE_MINUTES = 1.5
+"""What building the session's ``service`` fixture takes on a loaded machine (imported
+records, a service started, every loop diagnosed): once per worker that runs a test using it."""
+
+
+def _minutes(item: pytest.Item) -> float:
+    """A slow test's expected minutes on a loaded run (``slow(minutes=...)``, default 1); 0 for
+    the others."""
+    mark = item.get_closest_marker("slow")
+    return float(mark.kwargs.get("minutes", 1.0)) if mark is not None else 0.0
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The tests marked slow (real processes, fault drills, simulated plants filling their
-    windows; 1-3 minutes each on a loaded machine) start first: collected in file order, the
-    fault suite began at 95 % of a loaded run and was the last to finish (issue 47's 12
-    minutes). The order within each group stays."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+    windows; 1-5 minutes each on a loaded machine) start first, the longest first, spread
+    over the workers by their minutes; the tests that use the session's running ``service``
+    go together to one worker, which builds it once.
+
+    Collected in file order, the fault suite began at 95 % of a loaded run and was the last
+    to finish (issue 47's 12 minutes). pytest-xdist's ``worksteal`` hands each worker one
+    contiguous share of this order, and a worker steals only from the end of another's: with
+    every slow test at the front they all fell to the first worker, one after another, and
+    the service was built by three workers. Each share now begins with its own slow tests."""
+    workers = int(getattr(config, "workerinput", {}).get("workercount", 1))
+    shared = [item for item in items if "service" in getattr(item, "fixturenames", ())]
+    units = [[item] for item in items if _minutes(item) > 0 and item not in shared]
+    if shared:
+        units.append(shared)
+
+    def weight(unit: list[pytest.Item]) -> float:
+        return sum(map(_minutes, unit)) + (SHARED_SERVICE_MINUTES if unit is shared else 0.0)
+
+    units.sort(key=weight, reverse=True)  # stable: equal minutes keep the file order
+    heads: list[list[pytest.Item]] = [[] for _ in range(workers)]
+    load = [0.0] * workers
+    for unit in units:  # the longest first, each to the least loaded worker
+        k = load.index(min(load))
+        heads[k] += unit
+        load[k] += weight(unit)
+    placed = {id(item) for head in heads for item in head}
+    quick = iter(item for item in items if id(item) not in placed)
+    ordered: list[pytest.Item] = []
+    left = len(items)
+    for k, head in enumerate(heads):
+        share = left // (workers - k)  # worksteal's first hand-out: pending // idle workers
+        ordered += head + list(itertools.islice(quick, max(0, share - len(head))))
+        left -= share
+    items[:] = ordered + list(quick)
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -93,6 +139,32 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         done.set()
 
 
+@pytest.fixture(scope="session")
+def computed_once(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> ComputedOnce:
+    """``once(name, compute)``: ``compute()``'s JSON value, computed by one pytest-xdist worker
+    for the whole run and read by the others (the pattern of pytest-xdist's docs, with a file
+    lock). A module fixture is built again on every worker that runs one of its tests: the
+    generated cases' confusion matrix was computed twice per run, 120 s of two busy cores."""
+    base = tmp_path_factory.getbasetemp()
+    # a worker's folder is <run>/popen-gwN: <run> is this run's alone (the single-process
+    # base's parent holds every earlier run's, where a stale value would be read)
+    shared = base.parent if hasattr(request.config, "workerinput") else base
+
+    def once(name: str, compute: Callable[[], Any]) -> Any:
+        path = shared / f"{name}.json"
+        with (shared / f"{name}.lock").open("w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if path.exists():
+                return json.loads(path.read_text(encoding="utf-8"))
+            value = compute()
+            path.write_text(json.dumps(value), encoding="utf-8")
+            return value
+
+    return once
+
+
 @pytest.fixture
 def run_cli() -> RunCli:
     """Run ``plantcheck ARGS`` as a user would (new process), return the completed process."""
@@ -134,7 +206,10 @@ def service() -> Iterator[Service]:
     with tempfile.TemporaryDirectory(prefix="plantcheck-svc-") as d:
         folder = Path(d)
         port = free_port()
-        config = write_config(folder, port=port)
+        # every 10 s: it runs through the whole test run beside the other tests (every 3 s it
+        # took a third of a core: 250 of the run's 1,280 CPU seconds), and the table's
+        # freshness test still sees a diagnosis within its 10-s poll
+        config = write_config(folder, port=port, period_s=10.0)
         start, truth = fill_store(folder, config)
         svc = start_service(config, port, truth, start)
         try:

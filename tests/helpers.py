@@ -6,6 +6,7 @@ import socket
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -18,6 +19,8 @@ from plantcheck.storage.results import Verdict
 from plantcheck.storage.store import LoopRow
 
 RunCli = Callable[..., subprocess.CompletedProcess[str]]
+ComputedOnce = Callable[[str, Callable[[], Any]], Any]
+"""``computed_once``'s function (tests/conftest.py): a JSON value computed once per run."""
 
 T0 = 1_767_225_600_000_000
 """2026-01-01T00:00:00Z in µs: the start of the store tests' samples."""

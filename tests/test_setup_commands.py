@@ -5,7 +5,8 @@ command 1 makes ``.venv`` with a plain ``pip install .`` and runs the demo; comm
 Tests reach no network: pip installs from a local wheelhouse repacked from this test's own
 environment (every installed distribution, as the wheel it was installed from), with
 ``PIP_NO_INDEX``. The demo runs 10 s on a free port; ``make test`` runs the linters, mypy and
-the tests of ``tests/core`` (``PYTEST_ARGS``: the whole suite already runs around this test).
+the tests of ``tests/core`` in one process (``PYTEST_ARGS``: the whole suite already runs around
+this test; ``-n 0`` spares starting three workers for one file).
 """
 
 from __future__ import annotations
@@ -108,7 +109,7 @@ def _wheelhouse(into: Path) -> None:
             _repack(dist, into)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=3)
 def test_readme_commands_work_in_the_order_written(tmp_path: Path) -> None:
     if shutil.which("git") is None or shutil.which("make") is None:
         pytest.skip("needs git and make")
@@ -136,7 +137,7 @@ def test_readme_commands_work_in_the_order_written(tmp_path: Path) -> None:
     # differs): a cold run is the largest share of command 2 that nothing else here tests
     if (ROOT / ".mypy_cache").is_dir():
         shutil.copytree(ROOT / ".mypy_cache", clone / ".mypy_cache")
-    two = _run(["make", "test", "PYTEST_ARGS=tests/core"], clone, env, "command 2")
+    two = _run(["make", "test", "PYTEST_ARGS=-n 0 tests/core"], clone, env, "command 2")
     assert (clone / ".venv" / "bin" / "ruff").exists()
     assert " passed" in two
 

@@ -9,9 +9,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from servicehelpers import API_KEY, Service
 
 
+@pytest.mark.slow(minutes=2)
 def test_api_conforms_to_its_openapi(service: Service, tmp_path: Path) -> None:
     exe = shutil.which("schemathesis") or str(Path(sys.executable).parent / "schemathesis")
     args = [

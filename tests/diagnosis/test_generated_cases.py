@@ -13,6 +13,7 @@ from __future__ import annotations
 import collections
 
 import pytest
+from helpers import ComputedOnce
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.simulator.cases import generate_cases
@@ -27,8 +28,8 @@ MIN_RECALL = {
 }
 
 
-@pytest.fixture(scope="module")
-def confusion() -> collections.Counter[tuple[str, str]]:
+def _confusion() -> list[tuple[str, str, int]]:
+    """(true cause, diagnosed cause, windows) over the generated cases; prints the matrix."""
     conf: collections.Counter[tuple[str, str]] = collections.Counter()
     for c in generate_cases(seed=11, lengths=(1000, 5000, 20000)):
         r = simulate_loop(c.config)
@@ -40,7 +41,14 @@ def confusion() -> collections.Counter[tuple[str, str]]:
     print("\ntrue \\ predicted".ljust(24) + "".join(x[:11].rjust(12) for x in causes))
     for a in sorted({a for a, _ in conf}):
         print(a.ljust(23) + "".join(str(conf[(a, b)]).rjust(12) for b in causes))
-    return conf
+    return [(a, b, n) for (a, b), n in conf.items()]
+
+
+@pytest.fixture(scope="module")
+def confusion(computed_once: ComputedOnce) -> collections.Counter[tuple[str, str]]:
+    return collections.Counter(
+        {(a, b): n for a, b, n in computed_once("generated-cases-confusion", _confusion)}
+    )
 
 
 @pytest.mark.parametrize("cause", sorted(MIN_RECALL))

@@ -11,21 +11,29 @@ import collections
 
 import numpy as np
 import pytest
+from helpers import ComputedOnce
 
 from plantcheck.diagnosis.valve_kpis import VALVE_STATES, classify_valve, mv_only_oscillation
 from plantcheck.simulator.cases import generate_actuator_cases
 from plantcheck.simulator.loop import simulate_loop
 
 
-@pytest.fixture(scope="module")
-def confusion() -> collections.Counter[tuple[str, str]]:
+def _confusion() -> list[tuple[str, str, int]]:
+    """(true actuator state, classified state, cases); prints the rows."""
     conf: collections.Counter[tuple[str, str]] = collections.Counter()
     for c in generate_actuator_cases(seed=1, per_cell=3):
         r = simulate_loop(c.config)
         conf[(c.valve_state, classify_valve(r.op, r.mv, c.config.sample_time_s).state)] += 1
     for a in sorted({a for a, _ in conf}):
         print(a.ljust(22), {b: v for (x, b), v in conf.items() if x == a})
-    return conf
+    return [(a, b, n) for (a, b), n in conf.items()]
+
+
+@pytest.fixture(scope="module")
+def confusion(computed_once: ComputedOnce) -> collections.Counter[tuple[str, str]]:
+    return collections.Counter(
+        {(a, b): n for a, b, n in computed_once("actuator-cases-confusion", _confusion)}
+    )
 
 
 @pytest.mark.parametrize("state", VALVE_STATES)

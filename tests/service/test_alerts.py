@@ -142,7 +142,6 @@ window_s = 1800
 period_s = 2
 workers = 1
 confirm = 1
-quantify_every_s = 0
 
 [[source]]
 name = "ua"

@@ -73,7 +73,7 @@ def _stop(*procs: subprocess.Popen[bytes]) -> str:
     return err
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=1.5)
 def test_demo_shows_every_loop_with_its_true_cause(tmp_path: Path) -> None:
     port, admin = free_port(), free_port()
     proc = _cli(
@@ -172,7 +172,7 @@ def _epoch(iso: str) -> float:
     return datetime.fromisoformat(iso.replace("Z", "+00:00")).timestamp()
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=2)
 def test_modbus_simulator_at_20x_read_by_its_clock_shows_every_true_cause(
     tmp_path: Path,
 ) -> None:

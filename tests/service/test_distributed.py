@@ -32,7 +32,7 @@ from plantcheck.service.diagnosis_queue import TASK
 from plantcheck.simulator.export import map_toml
 from plantcheck.simulator.scenario import load_scenario
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.slow(minutes=2)
 
 PERIOD_S = 4.0
 STALLED_AFTER_S = 4.0
@@ -41,14 +41,13 @@ STALLED_AFTER_S = 4.0
 def _site_config(folder: Path, url: str, api_port: int, opcua_url: str) -> Path:
     """One site configuration: the default plant's 11 loops as imported records (a source the
     service reads, down), and the live simulator's 11 loops as EDGE-* read by collector edge1."""
-    base = write_config(folder, port=api_port).read_text()
+    base = write_config(folder, port=api_port, period_s=PERIOD_S).read_text()
     base = re.sub(r'url = "sqlite\+aiosqlite:///[^"]*"', f'url = "{url}"', base, count=1)
     base = base.replace(
         "[scheduler]\n",
         '[scheduler]\nengine = "queue"\nbatch_size = 4\nheartbeat_s = 1\n'
         f"stalled_after_s = {STALLED_AFTER_S:g}\ntakeover_poll_s = 0.5\n",
     )
-    base = base.replace("period_s = 3", f"period_s = {PERIOD_S:g}")
     sc = load_scenario(None)
     sc = sc.model_copy(update={"opcua": sc.opcua.model_copy(update={"url": opcua_url})})
     edge = map_toml(sc, protocol="opcua", poll_interval_s=0.1)

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from soak import FAULTS, LOOPS, drill
 
 
-@pytest.mark.slow
+@pytest.mark.slow(minutes=2)
 def test_every_fault_is_marked_and_nothing_is_lost_outside_them(tmp_path: Path) -> None:
     with drill(tmp_path) as d:
         fresh_s = d.freshness_bound_s()  # what this machine manages before the faults
