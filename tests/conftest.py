@@ -9,7 +9,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 import uuid
@@ -19,9 +18,9 @@ from typing import Any
 
 import pgcluster
 import pytest
-from helpers import ComputedOnce, RunCli, free_port
+from helpers import ComputedOnce, RunCli
 from pgcluster import PgCluster
-from servicehelpers import Service, fill_store, start_service, wait_diagnosed, write_config
+from servicehelpers import Service, SharedService
 
 from plantcheck.storage.database import upgrade
 
@@ -90,6 +89,9 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """A test that leaves a file in the repository root (a database, a buffer written to the
     working folder) fails the run, naming it (issue 47)."""
+    shared = session.config.stash.get(SHARED_SERVICE, None)
+    if shared is not None:  # a run stopped before its last test's teardown
+        shared.stop()
     before = session.config.stash.get(ROOT_BEFORE, None)
     if before is None:
         return
@@ -200,24 +202,20 @@ def pg_cluster() -> Iterator[PgCluster]:
         cluster.destroy()
 
 
-@pytest.fixture(scope="session")
-def service() -> Iterator[Service]:
-    """One running service over 1 h of the default plant (11 loops), every loop diagnosed."""
-    with tempfile.TemporaryDirectory(prefix="plantcheck-svc-") as d:
-        folder = Path(d)
-        port = free_port()
-        # every 10 s: it runs through the whole test run beside the other tests (every 3 s it
-        # took a third of a core: 250 of the run's 1,280 CPU seconds), and the table's
-        # freshness test still sees a diagnosis within its 10-s poll
-        config = write_config(folder, port=port, period_s=10.0)
-        start, truth = fill_store(folder, config)
-        svc = start_service(config, port, truth, start)
-        try:
-            sticky = frozenset(k for k, t in truth.items() if t["S"] is not None)
-            wait_diagnosed(svc.url, len(truth), sticky=sticky)
-            yield svc
-        finally:
-            svc.stop()
+SHARED_SERVICE = pytest.StashKey[SharedService]()
+
+
+@pytest.fixture
+def service(request: pytest.FixtureRequest) -> Service:
+    """One running service over 1 h of the default plant (11 loops), every loop diagnosed,
+    shared by the tests that run one after another (``SharedService``)."""
+    return request.config.stash.setdefault(SHARED_SERVICE, SharedService()).get()
+
+
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> None:
+    shared = item.config.stash.get(SHARED_SERVICE, None)
+    if shared is not None:
+        shared.stop_unless_needed(getattr(nextitem, "fixturenames", None))
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

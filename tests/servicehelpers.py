@@ -7,7 +7,9 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -168,6 +170,48 @@ def wait_diagnosed(
         f"only {sum(lp['cause'] is not None for lp in loops)} of {n} diagnosed, "
         f"S of {sorted(sticky - {lp['id'] for lp in loops if lp['S'] is not None})} missing"
     )
+
+
+class SharedService:
+    """The session's running service over 1 h of the default plant (11 loops, every loop
+    diagnosed): built by the first test that asks for it, stopped once a test is followed by
+    one that does not use it (``stop_unless_needed``), built again if a later test does.
+
+    A session fixture would live to the end of the run: the tests that use it run together,
+    first on their worker, and after them the service went on diagnosing for the other 90 %
+    of the run, beside every other test (a tenth of a core)."""
+
+    def __init__(self) -> None:
+        self._running: Service | None = None
+        self._folder: tempfile.TemporaryDirectory[str] | None = None
+
+    def get(self) -> Service:
+        if self._running is None:
+            self._folder = tempfile.TemporaryDirectory(prefix="plantcheck-svc-")
+            folder = Path(self._folder.name)
+            port = free_port()
+            # every 10 s (at 3 s it took a third of a core), and the table's freshness test
+            # still sees a diagnosis within its 10-s poll
+            config = write_config(folder, port=port, period_s=10.0)
+            start, truth = fill_store(folder, config)
+            svc = start_service(config, port, truth, start)
+            self._running = svc
+            sticky = frozenset(k for k, t in truth.items() if t["S"] is not None)
+            wait_diagnosed(svc.url, len(truth), sticky=sticky)
+        return self._running
+
+    def stop(self) -> None:
+        if self._running is not None:
+            self._running.stop()
+            self._running = None
+        if self._folder is not None:
+            self._folder.cleanup()
+            self._folder = None
+
+    def stop_unless_needed(self, next_fixtures: Iterable[str] | None) -> None:
+        """Stop it unless the next test (its fixture names; None: no next test) uses it."""
+        if next_fixtures is None or "service" not in next_fixtures:
+            self.stop()
 
 
 def _chromium() -> str | None:
