@@ -228,11 +228,12 @@ def diagnose_cmd(
     ] = LevelControl.averaging,
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
+    rec = _load(file, sample_time, ("pv", "op"), max_samples)
+    # after the record is read: a record refused is told without the diagnosis' imports
     from plantcheck.diagnosis import ChainParams, baseline_from, diagnose_loop
     from plantcheck.diagnosis.retuning import RetuneParams
     from plantcheck.diagnosis.tuning_proposal import TuningSettings
 
-    rec = _load(file, sample_time, ("pv", "op"), max_samples)
     sl, extra = _tail(rec, max_samples)
     pv = rec.signals["pv"][sl]
     op = rec.signals["op"][sl]

@@ -28,8 +28,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _root_entries() -> set[str]:
-    """What the repository root holds, but tool caches (``.pytest_cache``, ...)."""
-    return {p.name for p in ROOT.iterdir() if not p.name.startswith(".")}
+    """What the repository root holds, but caches (``.pytest_cache``, ``__pycache__``: the
+    root is the package's folder)."""
+    return {
+        p.name for p in ROOT.iterdir() if not p.name.startswith(".") and p.name != "__pycache__"
+    }
 
 
 SHARED_SERVICE_MINUTES = 1.5
