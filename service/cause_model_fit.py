@@ -160,13 +160,20 @@ def corpus_evidence(
     return out
 
 
-def fit_trees(x: NDArray[np.float64], y: NDArray[np.int64], seed: int = 0) -> Any:
-    """LightGBM's multiclass booster fitted on ``x``, ``y`` (its native API: no scikit-learn)."""
+def fit_trees(
+    x: NDArray[np.float64],
+    y: NDArray[np.int64],
+    seed: int = 0,
+    changed: dict[str, Any] | None = None,
+    rounds: int = ROUNDS,
+) -> Any:
+    """LightGBM's multiclass booster fitted on ``x``, ``y`` (its native API: no scikit-learn);
+    ``changed`` overrides entries of ``LGBM_PARAMS`` (benchmarks/cause_model_limits.py)."""
     import lightgbm
 
-    params = {**LGBM_PARAMS, "num_class": len(CLASSES), "seed": seed,
+    params = {**LGBM_PARAMS, **(changed or {}), "num_class": len(CLASSES), "seed": seed,
               "num_threads": os.cpu_count() or 1}  # fmt: skip
-    return lightgbm.train(params, lightgbm.Dataset(x, label=y), num_boost_round=ROUNDS)
+    return lightgbm.train(params, lightgbm.Dataset(x, label=y), num_boost_round=rounds)
 
 
 def export_trees(booster: Any, temperature: float, meta: dict[str, object]) -> CauseModel:
