@@ -184,23 +184,39 @@ class SharedService:
     def __init__(self) -> None:
         self._running: Service | None = None
         self._folder: tempfile.TemporaryDirectory[str] | None = None
+        self._failed: str | None = None
 
     def get(self) -> Service:
+        """The running service; a build that failed fails every test of the row that asks
+        again, with the first failure's message, as a session fixture's error would."""
+        if self._failed is not None:
+            raise RuntimeError(f"the shared service could not be built: {self._failed}")
         if self._running is None:
-            self._folder = tempfile.TemporaryDirectory(prefix="plantcheck-svc-")
-            folder = Path(self._folder.name)
-            port = free_port()
-            # every 10 s (at 3 s it took a third of a core), and the table's freshness test
-            # still sees a diagnosis within its 10-s poll
-            config = write_config(folder, port=port, period_s=10.0)
-            start, truth = fill_store(folder, config)
-            svc = start_service(config, port, truth, start)
-            self._running = svc
-            sticky = frozenset(k for k, t in truth.items() if t["S"] is not None)
-            wait_diagnosed(svc.url, len(truth), sticky=sticky)
+            try:
+                self._running = self._build()
+            except Exception as exc:
+                self._failed = f"{type(exc).__name__}: {exc}"
+                self.stop(forget_failure=False)
+                raise
         return self._running
 
-    def stop(self) -> None:
+    def _build(self) -> Service:
+        self._folder = tempfile.TemporaryDirectory(prefix="plantcheck-svc-")
+        folder = Path(self._folder.name)
+        port = free_port()
+        # every 10 s (at 3 s it took a third of a core), and the table's freshness test
+        # still sees a diagnosis within its 10-s poll
+        config = write_config(folder, port=port, period_s=10.0)
+        start, truth = fill_store(folder, config)
+        svc = start_service(config, port, truth, start)
+        self._running = svc  # stopped by stop() if the wait below fails
+        sticky = frozenset(k for k, t in truth.items() if t["S"] is not None)
+        wait_diagnosed(svc.url, len(truth), sticky=sticky)
+        return svc
+
+    def stop(self, forget_failure: bool = True) -> None:
+        if forget_failure:  # a later row of tests builds it again
+            self._failed = None
         if self._running is not None:
             self._running.stop()
             self._running = None
