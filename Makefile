@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 # Python writes its bytecode caches (__pycache__, ignored by git) during make's commands, whatever
 # the machine's environment says: an image that sets PYTHONDONTWRITEBYTECODE made every process
 # the tests start compile plantcheck and the test modules from source again (a worker's
-# collection 14 s of CPU instead of 9, a `plantcheck diagnose` 0.4 s more, hundreds of them).
+# collection 14 s of CPU instead of 9, each `plantcheck` command the tests run 0.4 s more).
 unexport PYTHONDONTWRITEBYTECODE
 
 # The stamp, not the plantcheck script, says the development install is done: README command
