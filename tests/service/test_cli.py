@@ -102,6 +102,7 @@ def test_oscillation_bad_column(run_cli: RunCli, tmp_path: Path) -> None:
     assert proc.returncode == 2 and "--column" in proc.stderr and "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow(minutes=0.5)  # 20-30 s: started early, not last
 def test_ten_million_rows(run_cli: RunCli, tmp_path: Path) -> None:
     """A 10-million-row file: diagnosed on its last --max-samples samples, never a traceback."""
     n = 10_000_000
@@ -142,6 +143,7 @@ def test_a_long_record_is_read_with_memory_bounded_by_max_rows(tmp_path: Path) -
     assert read_record(f).t.size == 5000
 
 
+@pytest.mark.slow(minutes=0.5)  # 20-30 s: started early, not last
 def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_path: Path) -> None:
     """Issue 46: one command rebuilds the model file from the simulated corpus (a small one
     here); the exported trees are checked against LightGBM's own scores inside the command."""

@@ -19,6 +19,7 @@ from servicehelpers import CLI, dump_dom, record_start, start_service, wait_diag
 from plantcheck.simulator.tuning_cases import tuning_case
 
 
+@pytest.mark.slow(minutes=0.5)  # 20-30 s: started early, not last
 def test_a_sluggish_loop_gets_its_setting_on_the_page(tmp_path: Path) -> None:
     case = tuning_case(11001, "sluggish", loads=0.3)
     r = case.record
