@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from plantcheck.diagnosis.cause_model import calibrated, shipped_cause_model
 from plantcheck.service.cause_model_fit import (
@@ -26,6 +27,7 @@ from plantcheck.service.cause_model_fit import (
     CHECK_SEED,
     FIT_SEED,
     FIT_WINDOWS,
+    CorpusEvidence,
     corpus_evidence,
     expected_calibration_error,
     export_trees,
@@ -125,21 +127,29 @@ def main() -> None:
         print(f"  {c:.2f}  {acc:.2f}  {n}")
     plot(table, a.png, ece)
     print("accuracy per family (learned / rules, windows):")
+    accuracy_per_family(chk, pred, rules)
+    if a.left_out:
+        left_out(a.windows, chk, pred, families)
+
+
+def accuracy_per_family(
+    ev: CorpusEvidence, pred: NDArray[np.int64], rules: NDArray[np.int64] | None = None
+) -> None:
+    """Print the share of ``ev``'s windows ``pred`` gets right per family value (and the
+    rules' share beside it when given), then under 300 samples and from 300 up."""
+    right = pred == ev.y
     for key, values in FAMILIES.items():
-        fam = np.array(chk.family[key])
+        fam = np.array(ev.family[key])
         cells = []
         for v in values:
             m = fam == v
             if m.any():
-                cells.append(f"{v} {np.mean(pred[m] == chk.y[m]):.2f}/"
-                             f"{np.mean(rules[m] == chk.y[m]):.2f} ({int(m.sum())})")  # fmt: skip
+                beside = "" if rules is None else f"/{np.mean(rules[m] == ev.y[m]):.2f}"
+                cells.append(f"{v} {np.mean(right[m]):.2f}{beside} ({int(m.sum())})")
         print(f"  {key}: " + ", ".join(cells))
-    short = chk.samples < 300
-    right = pred == chk.y
+    short = ev.samples < 300
     print(f"  windows under 300 samples: {np.mean(right[short]):.2f} ({int(short.sum())}); "
           f"300 and more: {np.mean(right[~short]):.2f}")  # fmt: skip
-    if a.left_out:
-        left_out(a.windows, chk, pred, families)
 
 
 def left_out(

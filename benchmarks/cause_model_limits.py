@@ -4,10 +4,10 @@ Fits LightGBM on the first 16,000, 32,000 and 64,000 windows of the fit seed, th
 them with deeper trees (63 leaves, 7 levels, half the learning rate, twice the rounds), and
 prints each one's macro-F1 and per-class F1 on the calibration seed's windows, and where the
 fit with the shipped settings errs (true cause against the one given, accuracy per family and
-per window length). The check seed
-stays for ``cause_model_accuracy.py``'s figures, and real records play no part. When doubling
-the windows or the trees gains little, the evidence the chain gathers is what limits the
-decision (Ke et al. 2017 for the trees).
+under 300 samples, as ``cause_model_accuracy.py`` prints it). The check seed stays for
+``cause_model_accuracy.py``'s figures, and real records play no part. When doubling the
+windows or the trees gains little, the evidence the chain gathers is what limits the decision
+(Ke et al. 2017 for the trees).
 
     python benchmarks/cause_model_limits.py [--cache build/corpus] [--identification 1200]
 
@@ -26,10 +26,11 @@ import argparse
 import math
 import multiprocessing
 import time
-from collections import Counter, defaultdict
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from cause_model_accuracy import accuracy_per_family
 from numpy.typing import NDArray
 
 from plantcheck.diagnosis.chain import chain_evidence
@@ -45,34 +46,17 @@ from plantcheck.service.cause_model_fit import (
     side_windows,
 )
 from plantcheck.simulator.cases import simc_pi_tc
-from plantcheck.simulator.corpus import CLASSES, FAMILY_KEYS, draw_case
+from plantcheck.simulator.corpus import CLASSES, draw_case
 
 DEEPER = {"num_leaves": 63, "max_depth": 7, "min_data_in_leaf": 40, "learning_rate": 0.05}
 
 
-LENGTHS = (300, 1_000, 3_000)
-"""Window-length bins (samples) of the error breakdown."""
-
-
 def errors(cal: CorpusEvidence, pred: NDArray[np.int64]) -> None:
-    """Each true cause's verdicts, then the share right per family value and per length."""
+    """Each true cause's verdicts, then the share right per family value and window length."""
     for c, name in enumerate(CLASSES):
         given = Counter(CLASSES[k] for k in pred[cal.y == c])
         print(f"  {name}: {dict(given.most_common())}")
-    right = pred == cal.y
-    for key in FAMILY_KEYS:
-        by: defaultdict[str, list[bool]] = defaultdict(list)
-        for value, ok in zip(cal.family[key], right, strict=True):
-            by[value].append(bool(ok))
-        print(
-            f"  {key}: "
-            + ", ".join(f"{v} {np.mean(b):.2f}/{len(b)}" for v, b in sorted(by.items()))
-        )
-    bins = np.digitize(cal.samples, LENGTHS)
-    edges = ("<300", "300-1000", "1000-3000", ">=3000")
-    print("  samples: " + ", ".join(
-        f"{e} {right[bins == i].mean():.2f}/{(bins == i).sum()}" for i, e in enumerate(edges)
-    ))  # fmt: skip
+    accuracy_per_family(cal, pred)
 
 
 def _ratios(index: int) -> tuple[str, float, float, float, float, float] | None:
