@@ -30,16 +30,24 @@ MODEL_FILE = "cause_model.npz"
 
 @dataclass(frozen=True)
 class _Walk:
-    """A model's nodes laid out for walking: every leaf points to itself, so all trees take
-    the same number of steps without being sorted out; where a missing input goes is decided
-    once per node; a node's contribution cell (class × input) is its tree's class and input;
-    ``base`` is each class's sum of its trees' root values, the same for every input."""
+    """A model's nodes laid out for walking, level by level: the nodes at depth d of every
+    tree form one block, in tree order, and a leaf above the last level is carried down as a
+    copy of itself, so all trees take the same number of steps and each step reads its block
+    from front to back. The tree-major order ``plantcheck model fit`` writes sends each of the
+    3,600 trees' steps to another part of a 10 MB array; in the chain, whose other arrays have
+    pushed the model out of the processor's caches, that made the walk 1.2 ms instead of 0.4
+    (0.66 ms in this order). Where a missing input goes is decided once per node; a node's
+    contribution cell (class × input) is its tree's class and input; ``base`` is each class's
+    sum of its trees' root values, the same for every input."""
 
     feature: IntArray
     threshold: FloatArray
     missing_left: BoolArray
     children: IntArray
+    """(2, slots): the slot a node goes to when it goes right (row 0) or left (row 1)."""
     cell: IntArray
+    value: FloatArray
+    roots: IntArray
     base: FloatArray
 
 
@@ -50,12 +58,30 @@ def _walk_layout(model: CauseModel) -> _Walk:
     nodes = np.arange(model.feature.size)
     leaf = model.feature < 0
     tree_of = np.repeat(np.arange(model.roots.size), np.diff(np.append(model.roots, nodes.size)))
+    levels = [model.roots]
+    kids: list[tuple[IntArray, IntArray]] = []
+    for _ in range(model.depth - 1):
+        cur = levels[-1]
+        on_leaf = leaf[cur]
+        first = np.cumsum(np.where(on_leaf, 1, 2)) - np.where(on_leaf, 1, 2)
+        nxt = np.empty(int(first[-1]) + (1 if on_leaf[-1] else 2), dtype=np.int64)
+        nxt[first] = np.where(on_leaf, cur, model.left[cur])
+        nxt[first[~on_leaf] + 1] = model.right[cur[~on_leaf]]
+        kids.append((np.where(on_leaf, first, first + 1), first))
+        levels.append(nxt)
+    starts = np.cumsum([0] + [lv.size for lv in levels])
+    last = np.arange(levels[-1].size) + starts[-2]
+    right = np.concatenate([k[0] + starts[d + 1] for d, k in enumerate(kids)] + [last])
+    left = np.concatenate([k[1] + starts[d + 1] for d, k in enumerate(kids)] + [last])
+    slot = np.concatenate(levels)
     return _Walk(
-        feature=np.where(leaf, 0, model.feature),
-        threshold=model.threshold,
-        missing_left=np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left),
-        children=np.stack([np.where(leaf, nodes, model.right), np.where(leaf, nodes, model.left)]),
-        cell=model.tree_class[tree_of] * n_feat + np.where(leaf, 0, model.feature),
+        feature=np.where(leaf, 0, model.feature)[slot],
+        threshold=model.threshold[slot],
+        missing_left=np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left)[slot],
+        children=np.stack([right, left]),
+        cell=(model.tree_class[tree_of] * n_feat + np.where(leaf, 0, model.feature))[slot],
+        value=model.value[slot],
+        roots=np.arange(model.roots.size),
         base=np.bincount(
             model.tree_class, weights=model.value[model.roots], minlength=len(model.classes)
         ).astype(np.float64),
@@ -163,7 +189,7 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
     whatever the number of trees; the contributions are summed once, over the whole path."""
     n_cls, n_feat = len(model.classes), len(model.features)
     w = model.walk
-    idx = model.roots
+    idx = w.roots
     path = [idx]
     for _ in range(model.depth - 1):
         xv = x[w.feature[idx]]
@@ -172,13 +198,11 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
         path.append(idx)
     visited = np.concatenate(path)
     came, went = visited[: -idx.size], visited[idx.size :]
-    steps = model.value[went] - model.value[came]
+    steps = w.value[went] - w.value[came]
     contrib = np.asarray(
         np.bincount(w.cell[came], weights=steps, minlength=n_cls * n_feat), dtype=np.float64
     ).reshape(n_cls, n_feat)
-    raw = np.bincount(model.tree_class, weights=model.value[idx], minlength=n_cls).astype(
-        np.float64
-    )
+    raw = np.bincount(model.tree_class, weights=w.value[idx], minlength=n_cls).astype(np.float64)
     return Decision(calibrated(raw, model.temperature), raw, w.base.copy(), contrib)
 
 
