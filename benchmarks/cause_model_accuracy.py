@@ -119,8 +119,8 @@ def main() -> None:
     print(f"learned macro-F1 {mf1:.3f}, accuracy {np.mean(pred == chk.y):.3f}; "
           f"rules macro-F1 {rf1:.3f}, accuracy {np.mean(rules == chk.y):.3f}")  # fmt: skip
     print("class".ljust(22) + "learned F1   rules F1")
-    for c, f, r in zip(CLASSES, f1s, rf1s, strict=True):
-        print(f"{c:22s}{f:10.3f}{r:11.3f}")
+    for cls, f, r in zip(CLASSES, f1s, rf1s, strict=True):
+        print(f"{cls:22s}{f:10.3f}{r:11.3f}")
     table = reliability(p, chk.y)
     print(f"expected calibration error {ece:.3f}; reliability (confidence, accuracy, windows):")
     for c, acc, n in table:
