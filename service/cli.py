@@ -229,7 +229,8 @@ def diagnose_cmd(
 ) -> None:
     """Diagnose one recorded loop: what is wrong and what to do."""
     rec = _load(file, sample_time, ("pv", "op"), max_samples)
-    # after the record is read: a record refused is told without the diagnosis' imports
+    base = None if baseline is None else _load(baseline, sample_time, ("pv", "op"), max_samples)
+    # after the records are read: a record refused is told without the diagnosis' imports
     from plantcheck.diagnosis import ChainParams, baseline_from, diagnose_loop
     from plantcheck.diagnosis.retuning import RetuneParams
     from plantcheck.diagnosis.tuning_proposal import TuningSettings
@@ -243,8 +244,7 @@ def diagnose_cmd(
     retuning = TuningSettings(retune=RetuneParams(level_control=level_control.value))
     params = ChainParams(decide_by=decision.value, dead_time_s=dead_time, retuning=retuning)
     normal = None
-    if baseline is not None:
-        base = _load(baseline, sample_time, ("pv", "op"), max_samples)
+    if baseline is not None and base is not None:
         try:
             normal = baseline_from(base.signals["pv"], base.signals["op"], base.signals.get("sp"),
                                    source=f"from {baseline.name}")  # fmt: skip
