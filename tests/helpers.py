@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 from collections.abc import Callable
@@ -59,11 +60,66 @@ def verdict_of(
     )
 
 
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+EPHEMERAL_RANGE = Path("/proc/sys/net/ipv4/ip_local_port_range")
+PORT_POOL_START = 10_000
+"""The first port ``free_port`` hands out; its pool ends where the kernel's ephemeral range
+(the ports of outgoing connections) begins."""
+PORT_SLICES = 16
+"""The pool is cut into this many slices, one per xdist worker (``gw0`` … ``gw15``)."""
+
+
+def _ephemeral_start() -> int:
+    try:
+        return int(EPHEMERAL_RANGE.read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 32_768  # Linux's default
+
+
+def _port_slice() -> range:
+    """This process' share of the ports below the ephemeral range: its xdist worker's slice,
+    or (outside xdist) the slice its process id falls on."""
+    width = (_ephemeral_start() - PORT_POOL_START) // PORT_SLICES
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    k = int(worker[2:]) if worker[2:].isdigit() else os.getpid()
+    lo = PORT_POOL_START + (k % PORT_SLICES) * width
+    return range(lo, lo + max(width, 0))
+
+
+_next_port: list[int] = []
+
+
+def _bindable(port: int) -> bool:
     with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now, and that no other test
+    process is handed and no outgoing connection takes before the test binds it.
+
+    A port the kernel picks (``bind(("127.0.0.1", 0))``) comes from the ephemeral range,
+    which outgoing connections draw from too: under load a client of another test took one
+    between the pick and the server's bind ("address already in use", seen once in a full
+    run). This process' ports come from its own slice below that range instead, in turn
+    from a start its process id sets, so none comes back until the slice's ~1,400 are used.
+    Where the ephemeral range leaves no room below it, the kernel picks as before."""
+    ports = _port_slice()
+    if len(ports) < 100:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            return int(s.getsockname()[1])
+    if not _next_port:
+        _next_port.append(os.getpid() % len(ports))
+    for _ in range(len(ports)):
+        port = ports[_next_port[0] % len(ports)]
+        _next_port[0] += 1
+        if _bindable(port):
+            return port
+    raise RuntimeError(f"no free port on 127.0.0.1 in {ports.start}-{ports.stop - 1}")
 
 
 def case_folders(name: str) -> list[Path]:
