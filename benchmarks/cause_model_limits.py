@@ -59,9 +59,10 @@ def errors(cal: CorpusEvidence, pred: NDArray[np.int64]) -> None:
     accuracy_per_family(cal, pred)
 
 
-def _ratios(index: int) -> tuple[str, float, float, float, float, float] | None:
+def _ratios(index: int) -> tuple[str, float, float, float, float, float, str] | None:
     """One window's (set-point family, identified and true log10 Kc/Kc_SIMC, identified and
-    true log10 Ti/Ti_SIMC, the quick process fit); None where the evidence has no ratio."""
+    true log10 Ti/Ti_SIMC, the quick process fit, the true cause); None where the evidence
+    has no ratio."""
     case, rec = draw_case(CALIBRATION_SEED, index)
     cfg = case.config
     _, ev = chain_evidence(rec.pv, rec.op, cfg.sample_time_s, sp=rec.sp, loop_type=case.loop_type)
@@ -71,14 +72,14 @@ def _ratios(index: int) -> tuple[str, float, float, float, float, float] | None:
     true_kc = math.log10(abs(cfg.controller.Kc / simc.Kc))
     true_ti = math.log10(cfg.controller.Ti_s / simc.Ti_s)
     found = [float(ev[k] or 0.0) for k in ("kc_over_simc", "ti_over_simc", "process_fit")]
-    return case.family["sp"], found[0], true_kc, found[1], true_ti, found[2]
+    return case.family["sp"], found[0], true_kc, found[1], true_ti, found[2], case.cause
 
 
 def identification(n: int) -> None:
     """How closely the identified controller-over-SIMC ratios follow the true ones."""
     with multiprocessing.get_context("fork").Pool() as pool:
         rows = [r for r in pool.map(_ratios, range(n), chunksize=8) if r is not None]
-    a = np.array([r[1:] for r in rows])
+    a = np.array([r[1:6] for r in rows])
     err = np.abs(a[:, 0] - a[:, 1])
     print(f"identified against true ratio, {len(rows)} of {n} windows with both ratios:")
     print(
@@ -87,10 +88,11 @@ def identification(n: int) -> None:
     )
     print(f"  Ti/Ti_SIMC: correlation {np.corrcoef(a[:, 2], a[:, 3])[0, 1]:.2f}, "
           f"median |error| {np.median(np.abs(a[:, 2] - a[:, 3])):.2f} decades")  # fmt: skip
-    fams = np.array([r[0] for r in rows])
-    for fam in sorted(set(fams)):
-        e = err[fams == fam]
-        print(f"  set point {fam}: {e.size} windows, Kc median |error| {np.median(e):.2f}")
+    for what, col in (("set point", 0), ("true cause", 6)):
+        values = np.array([r[col] for r in rows])
+        for v in sorted(set(values)):
+            e = err[values == v]
+            print(f"  {what} {v}: {e.size} windows, Kc median |error| {np.median(e):.2f}")
     for lo, hi in ((-np.inf, 0.3), (0.3, 0.6), (0.6, 0.9), (0.9, np.inf)):
         e = err[(a[:, 4] >= lo) & (a[:, 4] < hi)]
         if e.size:
