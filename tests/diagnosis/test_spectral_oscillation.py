@@ -105,7 +105,8 @@ def test_false_alarms_on_signals_without_an_oscillation() -> None:
     reason=f"ISDB oscillation records not found at {DATA} (../shared is not beside the repo)",
 )
 def test_isdb_oscillation_dev_balanced_accuracy() -> None:
-    """What ``score_real.py oscillation`` measures with the CLI (measured 0.914; floor 0.85)."""
+    """What ``score_real.py oscillation`` measures with the CLI (measured 0.914); the floor is
+    issue 46's transfer figure, 0.90."""
     hits = {True: [], False: []}  # type: dict[bool, list[bool]]
     for r in csv.DictReader((DATA / "labels.csv").open()):
         rows = list(csv.DictReader((DATA / r["file"]).open()))
@@ -118,7 +119,7 @@ def test_isdb_oscillation_dev_balanced_accuracy() -> None:
         hits[label].append(detect_oscillation(op[-200_000:], ts, SPECTRAL).oscillating == label)
     recall = sum(hits[True]) / len(hits[True])
     specificity = sum(hits[False]) / len(hits[False])
-    assert 0.5 * (recall + specificity) >= 0.85, (recall, specificity)
+    assert 0.5 * (recall + specificity) >= 0.90, (recall, specificity)
     assert specificity >= 0.85
 
 
