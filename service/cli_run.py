@@ -10,7 +10,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -219,6 +219,10 @@ def worker_cmd(
     asyncio.run(_work(cfg, str(config) if config else "", concurrency))
 
 
+DEMO_PORT_ATTEMPTS = 3
+"""Ports the demo tries for its simulator's OPC UA server before it gives up."""
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -301,37 +305,13 @@ def demo_cmd(
         data_dir.mkdir(parents=True, exist_ok=True)
         for old in data_dir.glob("demo*.db*"):
             old.unlink()
-        opcua_port = _free_port()
-        opcua_url = f"opc.tcp://127.0.0.1:{opcua_port}/plantcheck/"
+        from plantcheck.storage.database import upgrade
+
+        opcua_url = simulator_on_a_free_port(stack, admin, speed)
         cfg_path = data_dir / "plantcheck.toml"
         cfg_path.write_text(demo_config(data_dir, port, opcua_url, speed), encoding="utf-8")
         cfg = load_config(cfg_path)
-        from plantcheck.storage.database import upgrade
-
         upgrade(cfg.storage.url)
-        sim = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "plantcheck.service.cli",
-                # the demo's own terminal shows plantcheck's progress, not asyncua's notices
-                "--log-level",
-                "error",
-                "simulate",
-                "--opcua",
-                opcua_url,
-                "--modbus",
-                "off",
-                "--admin",
-                admin,
-                "--speed",
-                f"{speed:g}",
-                "--quiet",
-            ],
-            stdout=subprocess.DEVNULL,
-        )
-        stack.callback(_stop_process, sim)
-        _wait_for_port(sim, opcua_port)
         commands = "" if admin == "off" else f"; admin commands on {admin}"
         typer.echo(
             f"plantcheck demo: simulator at {speed:g}x on {opcua_url}{commands}; configuration "
@@ -341,16 +321,69 @@ def demo_cmd(
         _serve(cfg, str(cfg_path), 10.0, duration)
 
 
-def _wait_for_port(proc: subprocess.Popen[bytes], port: int, timeout_s: float = 60.0) -> None:
-    """Wait until the simulator accepts connections (it exits: fail with its reason)."""
+def simulator_on_a_free_port(
+    stack: contextlib.ExitStack,
+    admin: str,
+    speed: float,
+    choose: Callable[[], int] = _free_port,
+    attempts: int = DEMO_PORT_ATTEMPTS,
+) -> str:
+    """Start the demo's simulator on a loopback port ``choose`` gives (stopped when ``stack``
+    closes); its OPC UA URL. A port is free when chosen and may be taken before the
+    simulator, a second later, binds it (by any program's outgoing connection): the
+    simulator then exits, and another port is tried, ``attempts`` in all."""
+    for attempt in range(1, attempts + 1):
+        opcua_port = choose()
+        opcua_url = f"opc.tcp://127.0.0.1:{opcua_port}/plantcheck/"
+        sim = _start_simulator(opcua_url, admin, speed)
+        stack.callback(_stop_process, sim)
+        if _wait_for_port(sim, opcua_port):
+            return opcua_url
+        if attempt < attempts:
+            typer.echo(
+                f"plantcheck demo: the simulator could not serve on port {opcua_port}; "
+                "trying another",
+                err=True,
+            )
+    raise fail(f"the simulator exited with status {sim.returncode} (see above)")
+
+
+def _start_simulator(opcua_url: str, admin: str, speed: float) -> subprocess.Popen[bytes]:
+    """The demo's simulator: the bundled plant over OPC UA only, in its own process."""
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "plantcheck.service.cli",
+            # the demo's own terminal shows plantcheck's progress, not asyncua's notices
+            "--log-level",
+            "error",
+            "simulate",
+            "--opcua",
+            opcua_url,
+            "--modbus",
+            "off",
+            "--admin",
+            admin,
+            "--speed",
+            f"{speed:g}",
+            "--quiet",
+        ],
+        stdout=subprocess.DEVNULL,
+    )
+
+
+def _wait_for_port(proc: subprocess.Popen[bytes], port: int, timeout_s: float = 60.0) -> bool:
+    """Wait until the simulator accepts connections: True; False when it exits first (it
+    could not serve: its reason is on the terminal)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if proc.poll() is not None:
-            raise fail(f"the simulator exited with status {proc.returncode} (see above)")
+            return False
         with socket.socket() as s:
             s.settimeout(0.5)
             if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
+                return True
         time.sleep(0.2)
     raise fail(f"the simulator did not open its OPC UA port {port} within {timeout_s:g} s")
 

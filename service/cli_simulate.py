@@ -160,7 +160,14 @@ def _serve(scenario: Scenario) -> None:
     async def main() -> None:
         runner = PlantRunner(scenario)
         task = asyncio.create_task(runner.run())
-        await runner.ready.wait()
+        ready = asyncio.create_task(runner.ready.wait())
+        # a server that cannot start (its port taken) ends the run before it is ready: its
+        # error is the command's, not a simulator that runs on without that server
+        await asyncio.wait((task, ready), return_when=asyncio.FIRST_COMPLETED)
+        if not ready.done():
+            ready.cancel()
+            await task
+            return
         m, o, a = scenario.modbus, scenario.opcua, scenario.admin
         parts = [f"{len(scenario.loop)} loops at {scenario.clock.speed:g}x real time"]
         if m.enabled:

@@ -4,7 +4,9 @@ refusal of a bad scenario, and the servers started by the command itself."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
+import socket
 import subprocess
 import sys
 import time
@@ -15,6 +17,7 @@ from helpers import RunCli, free_port
 from pymodbus.client import AsyncModbusTcpClient
 
 from plantcheck.connectors.modbus_codec import decode
+from plantcheck.service.cli_run import simulator_on_a_free_port
 
 
 def test_to_csv_writes_records_and_truth_that_diagnose_reads(
@@ -103,6 +106,34 @@ def test_simulate_serves_until_stopped() -> None:
         proc.terminate()
         stdout, _ = proc.communicate(timeout=20)
     assert stdout.startswith("loop,signal,address,type")  # the map is printed at start
+
+
+def test_a_server_port_taken_ends_the_simulator_with_the_reason(run_cli: RunCli) -> None:
+    """A simulator whose OPC UA port is taken used to run on without that server, silent
+    behind the library's log line: now the command ends with the reason and the fix."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", free_port()))
+        taken.listen()
+        url = f"opc.tcp://127.0.0.1:{taken.getsockname()[1]}/plantcheck/"
+        r = run_cli("simulate", "--opcua", url, "--modbus", "off", "--quiet")
+    assert r.returncode == 2
+    assert "cannot serve" in r.stderr and "address already in use" in r.stderr, r.stderr
+    assert "choose free ports with --modbus/--opcua/--admin" in r.stderr
+
+
+def test_the_demo_tries_another_port_when_its_simulators_is_taken() -> None:
+    """The demo picks its simulator's OPC UA port; one taken before the simulator binds it
+    (by any program's outgoing connection, between the pick and the bind a second later)
+    makes the simulator exit, and the demo tries another."""
+    with socket.socket() as taken, contextlib.ExitStack() as stack:
+        # bound, not listening: as an outgoing connection's socket holds its port
+        taken.bind(("127.0.0.1", free_port()))
+        ports = iter([taken.getsockname()[1], free_port()])
+        url = simulator_on_a_free_port(stack, "off", 100.0, choose=lambda: next(ports))
+        second = int(url.split(":")[2].split("/")[0])
+        assert second != taken.getsockname()[1]
+        with socket.create_connection(("127.0.0.1", second), timeout=5):
+            pass
 
 
 def test_a_loop_whose_set_point_moves_every_20_minutes_gets_its_true_cause(
