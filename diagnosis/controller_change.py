@@ -129,6 +129,20 @@ def find_controller_change(
     return ControllerChange(at=row, sides=sides)
 
 
+def _ridge_inverse(sxx: FloatArray) -> FloatArray:
+    """Inverses of the stacked 3 × 3 normal matrices with a ridge of 1e-12. Where one is
+    singular at that ridge (the error constant over a whole side, a frozen transmitter under
+    a fixed set point: the rows [e, e, 1] are all alike, and e² · n dwarfs 1e-12), the ridge
+    grows to 1e-9 of the matrices' mean diagonal: a fit of no meaning that the fit threshold
+    then refuses, instead of an error that stopped the diagnosis."""
+    try:
+        return np.asarray(np.linalg.inv(sxx + 1e-12 * np.eye(3)), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        scale = np.trace(sxx, axis1=-2, axis2=-1)[..., None, None] / 3.0
+        ridge = (1e-9 * scale + 1e-12) * np.eye(3)
+        return np.asarray(np.linalg.inv(sxx + ridge), dtype=np.float64)
+
+
 def _best_split(
     sums: tuple[FloatArray, ...], m: NDArray[np.int64], ts: float, p: ControllerChangeParams
 ) -> tuple[int, PISides] | None:
@@ -143,7 +157,7 @@ def _best_split(
     for sxx, sxy, syy, sy, sn in (left, right):
         # a side of constant error: invertible, and a poor fit; the inverse serves the
         # coefficients and their covariance
-        inv = np.linalg.inv(sxx + 1e-12 * np.eye(3))
+        inv = _ridge_inverse(sxx)
         coef = np.einsum("nij,nj->ni", inv, sxy)
         sse = np.maximum(syy - np.einsum("ij,ij->i", coef, sxy), 0.0)
         sst = syy - sy * sy / np.maximum(sn, 1.0)

@@ -413,7 +413,9 @@ def identify_process(
             f"{p.min_fit_percent:g} % needed): loads or noise move the PV more than OP does"
         )
     lag1 = _residual_lag1(pv[rows], fit.x[rows], fit.K)
-    allowance = fit.sse / max(rows.size - 5, 1) * (1.0 + lag1) / (1.0 - lag1)
+    # an exact fit (PV and OP both interpolated straight across a historian's gap) leaves
+    # an SSE of rounding, which may be a hair below 0
+    allowance = max(fit.sse, 0.0) / max(rows.size - 5, 1) * (1.0 + lag1) / (1.0 - lag1)
     xr = fit.x[rows] - fit.x[rows].mean()
     sxx = float(xr @ xr)
     K_sd = math.sqrt(allowance / sxx) if sxx > 0 else None

@@ -100,3 +100,16 @@ def test_short_or_empty_windows_are_left_whole() -> None:
     ramp = np.linspace(0.0, 1.0, 2000)
     assert find_controller_change(nan, nan, None, 1.0) is None
     assert find_controller_change(ramp[:300], ramp[:300], None, 1.0) is None
+
+
+def test_a_frozen_transmitter_under_a_fixed_set_point_is_diagnosed_not_an_error() -> None:
+    """PV repeating one value and a fixed set point: the control error is constant, every
+    split's normal matrix singular, which once stopped the diagnosis with LinAlgError before
+    the window checks could say what the flat PV may be (issue 46 item 7)."""
+    n = 3600
+    op = 50.0 + np.cumsum(np.random.default_rng(0).normal(size=n)) * 0.05
+    pv, sp = np.full(n, 42.0), np.full(n, 45.0)
+    assert find_controller_change(pv, op, sp, 1.0) is None
+    d = diagnose(pv, op, 1.0, sp=sp, loop_type="flow", quantify=False)
+    assert d.cause == "data_quality"
+    assert any("transmitter is frozen" in note for note in d.notes), d.notes

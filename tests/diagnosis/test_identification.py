@@ -309,3 +309,14 @@ def test_the_quick_fit_declines_a_window_where_op_never_moves() -> None:
     pv = np.random.default_rng(0).normal(50, 0.1, 2000)
     assert quick_process_fit(pv, np.full(2000, 40.0)) is None
     assert quick_process_fit(pv[:30], pv[:30]) is None
+
+
+def test_an_exact_fit_is_a_model_not_an_error() -> None:
+    """PV and OP both straight lines (a historian interpolating across a gap): the fit is
+    exact, its SSE a rounding residue a hair below 0, which once raised a math domain error
+    out of the diagnosis."""
+    t = np.arange(3600, dtype=np.float64)
+    walk = 50.0 + np.cumsum(np.random.default_rng(0).normal(size=t.size)) * 0.05
+    for op in (40.0 + 0.01 * t, walk):
+        model = identify_process(40.0 + 0.01 * t, op, 1.0)
+        assert model.kind is None or (model.K_sd is not None and model.K_sd >= 0.0)
