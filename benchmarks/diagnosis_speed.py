@@ -6,7 +6,13 @@ every stage: window checks, oscillation, all stiction tests and the vote. Target
 (issue 3, Hammerstein grid search) is printed beside it, and the 3,600-sample window with four
 set-point steps (issue 25: <= 10 ms). Pin to one core with ``taskset -c 0``.
 
-    python benchmarks/diagnosis_speed.py [--repeat 30]
+``--stages`` also prints what the chain's main steps take inside it, on the 3,600-sample
+window: each step the chain module calls is timed where it calls it (its median per window),
+so a step's cost includes the caches the steps before it left cold, which a step timed alone
+does not show (the learned decision's trees: 0.4 ms alone, 1.8 ms in the chain before their
+walk was laid out level by level).
+
+    python benchmarks/diagnosis_speed.py [--repeat 30] [--stages]
 """
 
 from __future__ import annotations
@@ -15,8 +21,12 @@ import argparse
 import os
 import statistics
 import time
+from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
+import plantcheck.diagnosis.chain as chain_module
 from plantcheck.diagnosis import diagnose
 from plantcheck.service.allocator import tune_allocator
 from plantcheck.simulator.cases import sticky_flow_config
@@ -46,11 +56,54 @@ def _median_ms(pv: object, op: object, sp: object, quantify: bool, repeat: int) 
     return statistics.median(times) * 1000
 
 
+STAGES = (
+    "latest_controller_change",
+    "check_window",
+    "identify_pi",
+    "detect_stick_slip",
+    "detect_oscillation",
+    "run_stiction_tests",
+    "quick_process_fit",
+    "decide",
+    "window_kpis",
+)
+"""The chain module's calls timed by ``--stages``."""
+
+
+def stage_times(pv: object, op: object, sp: object, repeat: int) -> dict[str, float]:
+    """Median ms per window of each of ``STAGES`` as the chain calls it."""
+    spent: dict[str, list[float]] = defaultdict(list)
+    originals = {name: getattr(chain_module, name) for name in STAGES}
+
+    def timed(name: str, f: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                spent[name][-1] += time.perf_counter() - t0
+
+        return call
+
+    try:
+        for name, f in originals.items():
+            setattr(chain_module, name, timed(name, f))
+        for _ in range(repeat):
+            for name in STAGES:
+                spent[name].append(0.0)
+            diagnose(pv, op, 1.0, sp=sp, loop_type="flow", quantify=False)  # type: ignore[arg-type]
+    finally:
+        for name, f in originals.items():
+            setattr(chain_module, name, f)
+    return {name: statistics.median(spent[name]) * 1000 for name in STAGES}
+
+
 def main() -> None:
     # as every plantcheck process that diagnoses does (service/allocator.py)
     tune_allocator()
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeat", type=int, default=30)
+    ap.add_argument("--stages", action="store_true", help="time the chain's main steps too")
     args = ap.parse_args()
     print(f"cpu affinity: {sorted(os.sched_getaffinity(0))}")
     for n, target_ms in ((3600, 10.0), (86400, 200.0)):
@@ -75,6 +128,11 @@ def main() -> None:
         f"  3600 samples, 4 set-point steps         : median {med:8.2f} ms  target <= 10 ms "
         f"{verdict}  cause={d.cause}"
     )
+    if args.stages:
+        pv, op, sp = window(3600)
+        print("inside the chain, 3600 samples (median ms per window):")
+        for name, ms in stage_times(pv, op, sp, args.repeat).items():
+            print(f"  {name:26s} {ms:7.2f}")
 
 
 if __name__ == "__main__":
