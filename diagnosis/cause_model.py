@@ -36,8 +36,9 @@ class _Walk:
     copy of itself, so all trees take the same number of steps and each step reads its block
     from front to back. The tree-major order ``plantcheck model fit`` writes sends each of the
     3,600 trees' steps to another part of a 10 MB array; in the chain, whose other arrays have
-    pushed the model out of the processor's caches, that made the walk 1.2 ms instead of 0.4
-    (0.66 ms in this order). Where a missing input goes is decided once per node; a node's
+    pushed the model out of the processor's caches, that made the walk 1.4 ms instead of the
+    0.4 it takes alone; 0.7-0.8 ms in this order (``benchmarks/diagnosis_speed.py --stages``).
+    Where a missing input goes is decided once per node; a node's
     contribution cell (class × input) is its tree's class and input; ``base`` is each class's
     sum of its trees' root values, the same for every input."""
 
