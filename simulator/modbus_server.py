@@ -81,8 +81,16 @@ class ModbusPlantServer:
         return None
 
     async def start(self) -> None:
+        """Listen on the scenario's address; OSError naming it where that fails (pymodbus
+        raises a bare RuntimeError, "Could not start listen", for a port already taken)."""
         server = ModbusTcpServer(self._device(), address=(self.spec.host, self.spec.port))
-        await server.serve_forever(background=True)
+        try:
+            await server.serve_forever(background=True)
+        except RuntimeError as exc:
+            raise OSError(
+                f"the Modbus TCP server cannot listen on {self.spec.host}:{self.spec.port}, "
+                f"address already in use or not this machine's ({exc})"
+            ) from exc
         self.server = server
 
     async def stop(self) -> None:

@@ -13,6 +13,7 @@ import time
 import tomllib
 from pathlib import Path
 
+import pytest
 from helpers import RunCli, free_port
 from pymodbus.client import AsyncModbusTcpClient
 
@@ -108,14 +109,23 @@ def test_simulate_serves_until_stopped() -> None:
     assert stdout.startswith("loop,signal,address,type")  # the map is printed at start
 
 
-def test_a_server_port_taken_ends_the_simulator_with_the_reason(run_cli: RunCli) -> None:
+@pytest.mark.parametrize("server", ["opcua", "modbus"])
+def test_a_server_port_taken_ends_the_simulator_with_the_reason(
+    run_cli: RunCli, server: str
+) -> None:
     """A simulator whose OPC UA port is taken used to run on without that server, silent
-    behind the library's log line: now the command ends with the reason and the fix."""
+    behind the library's log line, and one whose Modbus port is taken stopped with
+    pymodbus' bare "Could not start listen": now the command ends with the reason and the
+    fix."""
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", free_port()))
         taken.listen()
-        url = f"opc.tcp://127.0.0.1:{taken.getsockname()[1]}/plantcheck/"
-        r = run_cli("simulate", "--opcua", url, "--modbus", "off", "--quiet")
+        port = taken.getsockname()[1]
+        if server == "opcua":
+            args = ("--opcua", f"opc.tcp://127.0.0.1:{port}/plantcheck/", "--modbus", "off")
+        else:
+            args = ("--modbus", f"127.0.0.1:{port}", "--opcua", "off")
+        r = run_cli("simulate", *args, "--admin", "off", "--quiet")
     assert r.returncode == 2
     assert "cannot serve" in r.stderr and "address already in use" in r.stderr, r.stderr
     assert "choose free ports with --modbus/--opcua/--admin" in r.stderr
