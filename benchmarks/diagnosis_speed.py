@@ -9,7 +9,7 @@ set-point steps (issue 25: <= 10 ms). Pin to one core with ``taskset -c 0``.
 ``--stages`` also prints what the chain's main steps take inside it, on the 3,600-sample
 window: each step the chain module calls is timed where it calls it (its median per window),
 so a step's cost includes the caches the steps before it left cold, which a step timed alone
-does not show (the learned decision's trees: 0.4 ms alone, 1.8 ms in the chain before their
+does not show (the learned decision's trees: 0.4 ms alone, 1.4 ms in the chain before their
 walk was laid out level by level).
 
     python benchmarks/diagnosis_speed.py [--repeat 30] [--stages]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import socket
 import subprocess
@@ -85,7 +86,8 @@ def _port_slice() -> range:
     return range(lo, lo + max(width, 0))
 
 
-_next_port: list[int] = []
+_turn = itertools.count(os.getpid())
+"""This process' turns through its slice, from a start its process id sets."""
 
 
 def _bindable(port: int) -> bool:
@@ -112,11 +114,8 @@ def free_port() -> int:
         with socket.socket() as s:
             s.bind(("127.0.0.1", 0))
             return int(s.getsockname()[1])
-    if not _next_port:
-        _next_port.append(os.getpid() % len(ports))
     for _ in range(len(ports)):
-        port = ports[_next_port[0] % len(ports)]
-        _next_port[0] += 1
+        port = ports[next(_turn) % len(ports)]
         if _bindable(port):
             return port
     raise RuntimeError(f"no free port on 127.0.0.1 in {ports.start}-{ports.stop - 1}")

@@ -131,7 +131,7 @@ def test_a_server_port_taken_ends_the_simulator_with_the_reason(
     assert "choose free ports with --modbus/--opcua/--admin" in r.stderr
 
 
-def test_the_demo_tries_another_port_when_its_simulators_is_taken() -> None:
+def test_the_demo_tries_another_port_when_its_simulators_port_is_taken() -> None:
     """The demo picks its simulator's OPC UA port; one taken before the simulator binds it
     (by any program's outgoing connection, between the pick and the bind a second later)
     makes the simulator exit, and the demo tries another."""
