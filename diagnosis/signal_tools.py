@@ -147,14 +147,22 @@ def moving_average(x: FloatArray, width: int) -> FloatArray:
     """Centred moving average over ``width`` samples (edges use the available samples)."""
     if width <= 1 or x.size == 0:
         return x
-    width = min(width, x.size)
-    c = np.concatenate(([0.0], np.cumsum(x)))
+    n = x.size
+    width = min(width, n)
+    c = np.empty(n + 1)
+    c[0] = 0.0
+    np.cumsum(x, out=c[1:])
     half_lo = width // 2
     half_hi = width - half_lo
-    idx = np.arange(x.size)
-    lo = np.clip(idx - half_lo, 0, x.size)
-    hi = np.clip(idx + half_hi, 0, x.size)
-    return np.asarray((c[hi] - c[lo]) / (hi - lo), dtype=np.float64)
+    out = np.empty(n)
+    # a full window inside, the samples there are at the edges: one slice each rather than
+    # a gather through clipped indices (the chain averages a dozen window-long signals)
+    out[half_lo : n - half_hi + 1] = (c[width:] - c[: n + 1 - width]) / width
+    k = np.arange(half_hi, width)
+    out[:half_lo] = c[k] / k
+    k = np.arange(n - width + 1, n - half_lo)
+    out[n - half_hi + 1 :] = (c[n] - c[k]) / (n - k)
+    return out
 
 
 @lru_cache(maxsize=32)

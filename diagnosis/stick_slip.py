@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -48,6 +49,7 @@ from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     IntArray,
     first_order_lags,
+    median,
     moving_average,
     noise_sigma,
     segment_max,
@@ -298,7 +300,7 @@ def _resolution(x: FloatArray) -> float:
     if nz.size == 0:
         return 0.0
     zero_share = 1.0 - nz.size / d.size
-    return float(np.median(nz)) if zero_share > 0.3 else 0.0
+    return median(nz) if zero_share > 0.3 else 0.0
 
 
 def _recording_variance(x: FloatArray, res: float, on_grid: float = 0.9) -> float:
@@ -325,17 +327,15 @@ def _turning_points(x: FloatArray, prominence: float) -> IntArray:
     kind = np.concatenate([np.ones(hi.size, np.int8), -np.ones(lo.size, np.int8)])
     order = np.argsort(idx)
     idx, kind = idx[order], kind[order]
-    keep: list[int] = []
-    kinds: list[int] = []
-    for i, k in zip(idx.tolist(), kind.tolist(), strict=True):
-        if kinds and kinds[-1] == k:
-            # two maxima (or minima) in a row: keep the more extreme one
-            if (x[i] - x[keep[-1]]) * k > 0:
-                keep[-1] = i
-            continue
-        keep.append(i)
-        kinds.append(k)
-    return np.asarray(keep, dtype=np.int64)
+    if idx.size == 0:
+        return np.asarray(idx, dtype=np.int64)
+    # two maxima (or minima) in a row: keep the more extreme one, the first of equals
+    first = np.flatnonzero(np.concatenate(([True], kind[1:] != kind[:-1])))
+    height = x[idx] * kind
+    group = np.repeat(np.arange(first.size), np.diff(np.append(first, idx.size)))
+    top = np.flatnonzero(height == np.maximum.reduceat(height, first)[group])
+    top = top[np.concatenate(([True], group[top[1:]] != group[top[:-1]]))]
+    return np.asarray(idx[top], dtype=np.int64)
 
 
 def _unresponsive(
@@ -388,10 +388,11 @@ def _best_fits(
     (no detrended copy of the regressors: this runs a few dozen times per window); every group
     is fitted in the same few array passes. Each row is taken relative to its first value, so
     that a level of 50 % does not swamp a variation of a tenth of a percent."""
-    r0 = _detrended(y)
     n = y.size
     t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
     tt = float(t @ t) or 1.0
+    centred = y - y.sum() / n
+    r0 = centred - ((centred @ t) / tt) * t  # ``_detrended(y)``, its time axis shared
     rel = regressors - regressors[:, :1]
     s1 = rel.sum(axis=1)
     st = rel @ t
@@ -412,8 +413,16 @@ class _Dynamics:
 
     op_lags: FloatArray
     delays: IntArray
-    rise: FloatArray
+    rise_from_zero: FloatArray
+    """The unit-step response of every lag (rows), 0 before the step (column 0) and ``k``
+    samples after it in column ``k + 1``: one gather builds the valve-step model, which runs a
+    dozen times per window."""
     pad: int
+
+    @property
+    def rise(self) -> FloatArray:
+        """The unit-step responses from the step on (column ``k``: ``k`` samples after)."""
+        return self.rise_from_zero[:, 1:]
 
     @classmethod
     def of(cls, op: FloatArray, longest: float | None = None) -> _Dynamics:
@@ -421,15 +430,24 @@ class _Dynamics:
         grids' own)."""
         pad = max(DELAY_GRID)
         padded = np.concatenate([np.full(pad, op[0]), op])
-        taus = np.asarray(LAG_GRID)[:, None]
-        k = np.arange(op.size + 8, dtype=np.float64)
-        with np.errstate(divide="ignore"):
-            rise = np.where(taus > 0, 1.0 - np.exp(-(k + 1.0) / np.where(taus > 0, taus, 1.0)), 1.0)
         bound = math.inf if longest is None else longest
         lags = [tau for tau in LAG_GRID if tau <= bound]
         delays = np.asarray([d for d in DELAY_GRID if d <= bound], dtype=np.int64)
         poles = [math.exp(-1.0 / tau) if tau > 0 else 0.0 for tau in lags]
-        return cls(first_order_lags(padded, poles), delays, rise, pad)
+        return cls(first_order_lags(padded, poles), delays, _step_rise(op.size), pad)
+
+
+@lru_cache(maxsize=8)
+def _step_rise(size: int) -> FloatArray:
+    """``_Dynamics.rise_from_zero`` of a ``size``-sample window (read-only: shared between the
+    windows of one length, as the exponentials took a fifth of the events' setup)."""
+    taus = np.asarray(LAG_GRID)[:, None]
+    k = np.arange(size + 8, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        rise = np.where(taus > 0, 1.0 - np.exp(-(k + 1.0) / np.where(taus > 0, taus, 1.0)), 1.0)
+    out = np.concatenate((np.zeros((rise.shape[0], 1)), rise), axis=1)
+    out.flags.writeable = False
+    return out
 
 
 def _linear_rows(dyn: _Dynamics, lo: int, n: int, integrating: bool) -> FloatArray:
@@ -470,13 +488,12 @@ def _slip_evidence(
     k = np.arange(n)
     lin = _linear_rows(dyn, s, n, integrating)
     # a valve step a few samples around the turn, through each lag: (offsets × lags, n)
+    # samples since each step; never past the rise's end (n <= the window, a > s)
     since = k[None, :] - np.arange(a - s - 8, a - s + 3, 2)[:, None]
-    rise = dyn.rise[:, np.clip(since, 0, dyn.rise.shape[1] - 1)].swapaxes(0, 1)
-    steps = np.where(since[:, None, :] >= 0, rise, 0.0)
-    steps = steps.reshape(-1, n)
+    steps = dyn.rise_from_zero[:, np.maximum(since, -1) + 1].swapaxes(0, 1).reshape(-1, n)
     if integrating:
         steps = np.cumsum(steps, axis=1)
-    signs = np.repeat([float(gain_sign), toward], (len(lin), len(steps)))
+    signs = np.concatenate((np.full(len(lin), float(gain_sign)), np.full(len(steps), toward)))
     return _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
 
 
@@ -521,11 +538,12 @@ def _moves_after(
     # the slip's response goes on (from the breakaway or around its end), or the valve slips
     # once more, either way
     origins = np.asarray([ev.breakaway, lo - 6, lo - 4, lo - 2, lo])
-    since = np.clip(k[None, :] + lo - origins[:, None], 0, dyn.rise.shape[1] - 1)
+    # samples since each origin: from 0 (origins <= lo) to below the window's length
+    since = k[None, :] + lo - origins[:, None]
     steps = dyn.rise[:, since].swapaxes(0, 1).reshape(-1, n)
     if integrating:
         steps = np.cumsum(steps, axis=1)
-    signs = np.repeat([float(gain_sign), 0.0], (len(lin), len(steps)))
+    signs = np.concatenate((np.full(len(lin), float(gain_sign)), np.zeros(len(steps))))
     sse_follow, sse_stuck = _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
     return (
         sse_stuck >= p.after_ratio * sse_follow
@@ -540,10 +558,11 @@ def _candidate(
     the slip clears the noise checks; with the slow-fast ratio, slip rate against the stuck
     drift, PV follow share and OP kick share (see ``StickSlipParams``)."""
     seg = toward * (sig.ys[a : b + 1] - sig.ys[a])
-    k_slip = int(np.argmax(seg))
-    size = float(seg[k_slip])
+    # the arrays' own methods: numpy's functions add a dispatch per call (this runs for every
+    # candidate, dozens per window)
+    size = float(seg.max())
     slope, wander = sig.line(s, a + 1)
-    t_half = max(1, int(np.argmax(seg >= 0.5 * size)))
+    t_half = max(1, int((seg >= 0.5 * size).argmax()))
     ratio = (a - s) / t_half
     if size <= 0.0 or size < p.slip_wander * wander or ratio < p.min_stick_slip_ratio:
         # a PV that never moves toward the slip (a flat, held or interpolated record) has none
@@ -552,7 +571,7 @@ def _candidate(
     follow = toward * float(sig.ys[a] - sig.ys[s]) / size
     kick = abs(float(sig.ops[a] - sig.ops[max(s, a - max(2, t_half))])) / travel
     # the slip ends where the PV has made 90 % of its move (it may creep on after)
-    end = a + max(1, int(np.argmax(seg >= 0.9 * size)))
+    end = a + max(1, int((seg >= 0.9 * size).argmax()))
     event = StickSlipEvent(s, a, end, travel, toward * size, strong=False)
     return event, ratio, rate, follow, kick
 
@@ -904,7 +923,8 @@ def _reading(events: tuple[StickSlipEvent, ...], n: int, p: StickSlipParams) -> 
     jumps = np.array([abs(ev.pv_jump) for ev in events])
     signs = np.sign([ev.pv_jump for ev in events])
     reversals = int(np.sum(signs[1:] != signs[:-1]))
-    med = float(np.median(travels))
+    med = median(travels)
+    jump = median(jumps)
     spread = float(np.std(travels) / med) if travels.size > 1 and med > 0 else None
     n_strong = sum(ev.strong for ev in events)
     strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
@@ -915,12 +935,12 @@ def _reading(events: tuple[StickSlipEvent, ...], n: int, p: StickSlipParams) -> 
     detail = (
         f"{len(events)} stick-slip event{plural} ({n_strong} confirmed by the valve-step "
         f"model): OP travel {med:.2f} % at breakaway (median), PV jump "
-        f"{float(np.median(jumps)):.3g}"
+        f"{jump:.3g}"
     )
     if spread is not None:
         detail += f", travel spread {100 * spread:.0f} %, {reversals} reversal(s)"
     test = StictionTestResult("stick_slip", float(len(events)), verdict, detail)
-    return StickSlipResult(events, test, med, spread, float(np.median(jumps)), reversals, None)
+    return StickSlipResult(events, test, med, spread, jump, reversals, None)
 
 
 @dataclass(frozen=True)
