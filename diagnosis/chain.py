@@ -144,8 +144,10 @@ def run_stiction_tests(
     osc: OscillationResult,
     loop_type: str,
     params: ChainParams,
+    error_noise: float | None = None,
 ) -> dict[str, StictionTestResult]:
-    """Run every stiction test that applies to ``loop_type`` on an oscillating window."""
+    """Run every stiction test that applies to ``loop_type`` on an oscillating window
+    (``error_noise``: the noise σ of ``e`` where the caller has it)."""
     assert osc.period_s is not None
     period = osc.period_s
     width = max(1, round(period / ts / 20.0))
@@ -153,7 +155,8 @@ def run_stiction_tests(
     names = applicable_tests(loop_type)
     out: dict[str, StictionTestResult] = {}
     es = moving_average(detrend(e), width)
-    band = params.oscillation.noise_band * noise_sigma(e) / np.sqrt(width)
+    sigma_e = noise_sigma(e) if error_noise is None else error_noise
+    band = params.oscillation.noise_band * sigma_e / np.sqrt(width)
     min_amp = 0.3 * np.sqrt(2.0) * float(np.std(es))
     hc_e = significant_half_cycles(es, ts, band, min_amp, params.shape.min_half_samples)
     if "relay" in names:
@@ -375,7 +378,7 @@ def _gather(run: _Run) -> None:
         return
     a, b = st.a, st.b
     run.tests = run_stiction_tests(win.sp[a:b] - win.pv[a:b], win.op[a:b], win.pv[a:b], run.ts,
-                                   st.osc, run.loop_type, p)  # fmt: skip
+                                   st.osc, run.loop_type, p, _error_noise(win, st))  # fmt: skip
     if run.decay is None:
         _decay_ratio(run, st)
 
@@ -425,6 +428,7 @@ def _read_events(run: _Run) -> bool:
         run.gain_sign,
         run.p.stick_slip,
         fastest_process=None if fastest is None else fastest / run.ts,
+        op_noise=win.op_noise,
     )
     _events_into(diag, run.events, run.ts)
     decides = win.verdict is not None and run.events.test.verdict == "stiction"
@@ -607,6 +611,11 @@ def _fitted_note(responses: tuple[StepResponse, ...]) -> str:
     return ""
 
 
+def _error_noise(win: WindowReport, st: _Stretch) -> float | None:
+    """The window checks' noise σ of SP − PV where the stretch is the whole window."""
+    return win.error_noise if (st.a, st.b) == (0, win.pv.size) else None
+
+
 def _slips_during(events: StickSlipResult, responses: tuple[StepResponse, ...]) -> bool:
     """True when a stick-slip event breaks away while the PV is settling after a set-point
     step (between the step and three closed-loop time constants after its dead time)."""
@@ -632,7 +641,9 @@ def _judge_oscillation(run: _Run, st: _Stretch) -> None:
         diag.notes.append(split.reason + " (valve healthy: stiction excluded)")
         diag.actions = [action_for(diag.cause)]
         return
-    tests = run.tests = run_stiction_tests(sp_s - pv_s, op_s, pv_s, ts, osc, run.loop_type, p)
+    tests = run.tests = run_stiction_tests(
+        sp_s - pv_s, op_s, pv_s, ts, osc, run.loop_type, p, _error_noise(win, st)
+    )
     if events is not None:
         tests["stick_slip"] = _events_vote(events, p.stick_slip)
     v = vote(list(tests.values()), p.vote)
@@ -915,7 +926,9 @@ def _evidence(run: _Run) -> dict[str, float | None]:
     win, diag = run.win, run.diag
     integrating = is_integrating(run.loop_type)
     ev: dict[str, float | None] = dict(
-        window_evidence(win.pv, win.op, win.sp, win.indices, integrating)
+        window_evidence(
+            win.pv, win.op, win.sp, win.indices, integrating, win.error_noise, win.op_noise
+        )
     )
     ind = diag.indices
     for name in ("idle_index", "sp_step_slowness", "sp_step_overshoot", "load_recovery_slowness",

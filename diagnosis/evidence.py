@@ -130,12 +130,16 @@ def window_evidence(
     sp: FloatArray,
     indices: dict[str, float],
     integrating: bool,
+    error_noise: float | None = None,
+    op_noise: float | None = None,
 ) -> dict[str, float]:
-    """The entries every usable window has, from its cleaned signals and window checks."""
+    """The entries every usable window has, from its cleaned signals and window checks (with
+    the noise σ of SP − PV and of OP where the checks read them: ``noise_sigma`` else)."""
     e = sp - pv
     n = int(pv.size)
     sd_e = float(np.std(e))
-    sigma = noise_sigma(e)
+    sigma = noise_sigma(e) if error_noise is None else error_noise
+    op_sigma = noise_sigma(op) if op_noise is None else op_noise
     sd_op = float(np.std(op))
     op_hi, op_lo = float(np.max(op)), float(np.min(op))
     at = (op >= op_hi - 1e-9 * max(1.0, abs(op_hi))) | (op <= op_lo + 1e-9 * max(1.0, abs(op_lo)))
@@ -148,7 +152,7 @@ def window_evidence(
         "error_sd_noise": sd_e / sigma if sigma > 0 else math.nan,
         "error_offset": abs(float(np.mean(e))) / sd_e if sd_e > 0 else math.nan,
         "op_sd": sd_op,
-        "op_noise_share": noise_sigma(op) / sd_op if sd_op > 0 else math.nan,
+        "op_noise_share": op_sigma / sd_op if sd_op > 0 else math.nan,
         "pv_unique_fraction": float(indices.get("pv_unique_fraction", math.nan)),
         "pv_unchanged_fraction": float(indices.get("pv_unchanged_fraction", math.nan)),
         "sp_steps": float(indices.get("sp_steps", 0.0)),

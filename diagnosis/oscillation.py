@@ -210,7 +210,7 @@ def detect_oscillation(
     composite = _composite(xd, ts, p, pv_range)
     if not p.spectral:
         return composite
-    peaks = _spectral_peaks(xd, ts, p)
+    peaks = _spectral_peaks(xd, ts, p, composite.noise_sigma)
     found = [pk for pk in peaks if pk.oscillating]
     if composite.oscillating and composite.period_s is not None:
         own = SpectralPeak(
@@ -247,12 +247,14 @@ def oscillations_json(res: OscillationResult) -> list[dict[str, float | None]]:
     ]
 
 
-def _spectral_peaks(xd: FloatArray, ts: float, p: OscillationParams) -> tuple[SpectralPeak, ...]:
+def _spectral_peaks(
+    xd: FloatArray, ts: float, p: OscillationParams, noise: float
+) -> tuple[SpectralPeak, ...]:
     return spectral_peaks(
         xd, ts, peak_ratio=p.peak_ratio, band=p.peak_band, min_share=p.peak_min_share,
         min_cycles=p.peak_min_cycles, smooth_bins=p.peak_smooth_bins,
         regularity_limit=p.regularity_limit, n_half=p.n_half, min_half=p.min_half,
-        max_peaks=p.max_peaks,
+        max_peaks=p.max_peaks, noise=noise,
     )  # fmt: skip
 
 

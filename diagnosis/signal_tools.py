@@ -93,11 +93,13 @@ def median(x: FloatArray) -> float:
     """Median of a 1-D array without NaN, as ``numpy.median`` gives it (the mean of the two
     middle values for an even size), through ``numpy.partition`` alone: ``numpy.median``'s
     own checks cost more than the partition on the short arrays the chain reads by the
-    dozen per window."""
+    dozen per window. Two order statistics asked at once for an odd size too: numpy 2.4's
+    partition at one index took 5-10 times longer than at two (3,599 samples: 85 µs against
+    9 µs)."""
     n = x.size
     h = n // 2
     if n % 2:
-        return float(np.partition(x, h)[h])
+        return float(np.partition(x, (h, h + 1))[h] if n > 1 else x[0])
     part = np.partition(x, (h - 1, h))
     return float((part[h - 1] + part[h]) / 2.0)
 

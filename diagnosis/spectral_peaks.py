@@ -93,6 +93,7 @@ def spectral_peaks(
     max_peaks: int = 4,
     harmonic_tolerance: float = 0.06,
     max_harmonic: int = 5,
+    noise: float | None = None,
 ) -> tuple[SpectralPeak, ...]:
     """Every oscillation among the strongest spectral peaks, strongest first.
 
@@ -107,7 +108,8 @@ def spectral_peaks(
     ``harmonic_tolerance``, up to ``max_harmonic``), is the same oscillation.
 
     When no peak is an oscillation the result holds only the best-ranked peak with the reason;
-    it is empty when the spectrum has no peak at all.
+    it is empty when the spectrum has no peak at all. ``noise``: the measurement noise σ of
+    ``x`` where the caller has it (``signal_tools.noise_sigma(x)``, else computed here).
     """
     n = int(x.size)
     power = _periodogram(x)
@@ -127,7 +129,7 @@ def spectral_peaks(
     ratios = _peak_ratios(smooth, cand)
     order = np.argsort(-(smooth[cand] * np.minimum(ratios, 50.0)), kind="stable")
     strong = [int(k) for k in order if ratios[k] >= peak_ratio][:max_peaks]
-    floor = n * noise_sigma(x) ** 2
+    floor = n * (noise_sigma(x) if noise is None else noise) ** 2
     found: list[SpectralPeak] = []
     first_failure: SpectralPeak | None = None
     for k in strong or [int(order[0])]:

@@ -722,6 +722,7 @@ def detect_stick_slip(
     gain_sign: int = 1,
     params: StickSlipParams | None = None,
     fastest_process: float | None = None,
+    op_noise: float | None = None,
 ) -> StickSlipResult:
     """Find stick-slip events in one window (methods §4.10; Kano et al. 2004 principle).
 
@@ -741,6 +742,8 @@ def detect_stick_slip(
         follows the valve within seconds (Kano et al. 2004 and Yamashita 2006 read the flow as
         the valve position); a PV flat for minutes while OP ramps, then jumping, cannot be the
         process' own lag and dead time there.
+    op_noise:
+        OP's noise σ, % (``signal_tools.noise_sigma(op)``), where the caller has it.
 
     Events come back as sample indices (any sample time: every threshold is in samples or
     noise multiples). A *strong* event is one the two-model test confirms (slow or fast loop);
@@ -771,7 +774,7 @@ def detect_stick_slip(
         w,
         (
             max((noise_sigma(y) if integrating else sigma_pv) / math.sqrt(w), 1e-12),
-            max(noise_sigma(op) / math.sqrt(w), 1e-12),
+            max((noise_sigma(op) if op_noise is None else op_noise) / math.sqrt(w), 1e-12),
             sigma_pv,
             res,
             _recording_variance(pv, res),

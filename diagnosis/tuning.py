@@ -20,6 +20,7 @@ from plantcheck.diagnosis.signal_tools import (
     block_means,
     fft_acf,
     first_order_lag,
+    median,
     noise_sigma,
 )
 
@@ -191,7 +192,7 @@ def idle_index(
     du = np.diff(u)
     dy = np.diff(y)
     sn = noise_sigma(pv)
-    away = np.abs(y[1:] - np.median(y)) > 2.0 * sn
+    away = np.abs(y[1:] - median(y)) > 2.0 * sn
     dz_u = p.idle_deadzone * float(np.std(du))
     dz_y = p.idle_deadzone * float(np.std(dy))
     use = away & (np.abs(du) > dz_u) & (np.abs(dy) > dz_y)

@@ -96,6 +96,12 @@ class WindowReport:
     segments: tuple[tuple[int, int], ...] = ()
     """Every settled stretch long enough to analyse, longest first (``segment`` is the first):
     a loop judged segment by segment between set-point steps."""
+    error_noise: float | None = None
+    """Noise σ of the control error SP − PV over the cleaned window (``noise_sigma``; None
+    where the checks stopped before the output stage): the tests that read the whole window
+    take it from here rather than each computing it again."""
+    op_noise: float | None = None
+    """Noise σ of the cleaned OP, % (None where the window was refused)."""
 
 
 def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
@@ -147,6 +153,8 @@ class _Window:
     n_levels: int = 0
     quantised: bool = False
     clamp: Clamp | None = None
+    error_noise: float = 0.0
+    """Noise σ of SP − PV, from the output stage on."""
 
     def stop(self, verdict: str, segment: tuple[int, int] | None = None) -> WindowReport:
         """The report of a window refused with ``verdict``."""
@@ -267,11 +275,11 @@ def _flat_pv_while_op_moves(w: _Window, p: WindowParams) -> None:
 def _output(w: _Window, p: WindowParams) -> WindowReport | None:
     """OP saturation (methods §1.4) and clamps at any output limit (issue 25): a clamp over
     most of the window is ``saturation``, a constant OP without one manual mode."""
-    clamp = w.clamp = _clamped(w.op, w.sp - w.pv, p)
+    e = w.sp - w.pv
+    sigma_e = w.error_noise = noise_sigma(e)
+    clamp = w.clamp = _clamped(w.op, e, sigma_e, p)
     w.indices["saturation_fraction"] = clamp.fraction
     if clamp.fraction > 0:
-        e = w.sp - w.pv
-        sigma_e = noise_sigma(e)
         err = float(np.mean(np.abs(e[clamp.mask])))
         w.indices["clamp_error_noise"] = err / sigma_e if sigma_e > 0 else 0.0
     if clamp.limit is not None:
@@ -336,7 +344,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     e_f = sp_f - pv_f
     usable = ~w.clamp.mask
     settling: list[int] = []
-    sigma_e = noise_sigma(e_f)
+    sigma_e = w.error_noise
     for k in steps.tolist():
         end = _settled(e_f, k, float(sp_f[k] - sp_f[k - 1]), sigma_e, p)
         settling.append(end - k)
@@ -347,7 +355,8 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     needed = max(p.min_samples, p.min_segment_samples)
     segments = tuple(s for s in stretches if s[1] - s[0] >= needed)
     if steps.size == 0 and (w.clamp.fraction == 0 or seg_len < needed):
-        return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, w.quantised)
+        return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, w.quantised,
+                            error_noise=sigma_e, op_noise=noise_sigma(op_f))  # fmt: skip
     if seg_len < needed:
         notes.append(
             f"{steps.size} set-point step(s) with their responses leave no settled stretch of "
@@ -355,7 +364,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
         )
         return WindowReport(
             "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, w.quantised, True,
-            tuple(steps.tolist()),
+            tuple(steps.tolist()), error_noise=sigma_e, op_noise=noise_sigma(op_f),
         )  # fmt: skip
     if steps.size:
         notes.append(
@@ -371,7 +380,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     indices["sp_steps"] = float(steps.size)
     return WindowReport(
         None, notes, pv_f, op_f, sp_f, segment, indices, w.quantised, False,
-        tuple(steps.tolist()), segments,
+        tuple(steps.tolist()), segments, sigma_e, noise_sigma(op_f),
     )  # fmt: skip
 
 
@@ -426,7 +435,7 @@ class Clamp:
     limit: float | None
 
 
-def _clamped(op: FloatArray, e: FloatArray, p: WindowParams) -> Clamp:
+def _clamped(op: FloatArray, e: FloatArray, sigma_e: float, p: WindowParams) -> Clamp:
     """Samples where OP rests at an output limit while PV is off set point.
 
     A DCS output limit can sit anywhere (55 %, say), so the limit is OP's own extreme value
@@ -434,10 +443,10 @@ def _clamped(op: FloatArray, e: FloatArray, p: WindowParams) -> Clamp:
     ``min_clamp_samples`` in a row, the control error off zero by
     ``clamp_error_noise`` × its noise σ on average and on one side over the run. Near 0 or 100 %
     (``saturation_band``) any sample pinned at the extreme counts (methods §1.4, [V]).
+    ``sigma_e`` is the error's noise σ (``noise_sigma(e)``).
     """
     n = int(op.size)
     op_pp = float(np.ptp(op))
-    sigma_e = noise_sigma(e)
     pin = min(p.saturation_pin, 0.05 * op_pp) if op_pp > 0 else 0.0
     mask = np.zeros(n, dtype=bool)
     limits: list[tuple[float, float]] = []
