@@ -11,6 +11,7 @@ then the split between aggressive tuning and an external disturbance (``cause_sp
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -134,6 +135,14 @@ class ChainParams:
     time): a flow (Kano et al. 2004 and Yamashita 2006 read the flow as the valve position).
     The stick-slip events' linear model may not explain a PV that stays flat for longer
     while OP ramps. Any bound from 10 to 60 s gives the same refinery verdicts [R]."""
+
+
+@lru_cache(maxsize=1)
+def default_chain_params() -> ChainParams:
+    """``ChainParams()``, built once: it is frozen, nested parameters and all, so every call
+    can share it (building its dozen nested defaults took 0.16 ms of a 3,600-sample
+    diagnosis)."""
+    return ChainParams()
 
 
 def run_stiction_tests(
@@ -277,7 +286,7 @@ def _standard(
     """
     if loop_type not in LOOP_TYPES:
         raise ValueError(f"loop_type must be one of {', '.join(LOOP_TYPES)}, not {loop_type!r}")
-    p = params or ChainParams()
+    p = params or default_chain_params()
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
     change = None
@@ -401,7 +410,7 @@ def chain_evidence(
     """The rules' cause and the evidence (``evidence.FEATURES``) of one window, None for a
     window with nothing to weigh: what ``plantcheck model fit`` learns from. The rules
     decide here (``params.cause_model`` is ignored) and S/J are not estimated."""
-    p = replace(params or ChainParams(), cause_model=None)
+    p = replace(params or default_chain_params(), cause_model=None)
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
     win = check_window(pv, op, sp, auto, p.window)
@@ -1138,7 +1147,7 @@ def diagnose_advanced(
     The OP/PV stiction tests are not run: MV answers the valve question directly, and the
     loop-level pass only checks the window, finds the oscillation and splits its cause.
     """
-    p = params or ChainParams()
+    p = params or default_chain_params()
     std = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True,
                     baseline=baseline)  # fmt: skip
     std.chain = "advanced"

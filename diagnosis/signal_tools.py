@@ -362,11 +362,13 @@ def half_cycles(
     s = np.linspace(0.0, 1.0, n_points)
     length = (stops - starts).astype(np.float64)
     pos = starts[:, None] + s[None, :] * length[:, None]
-    i0 = np.clip(np.floor(pos).astype(np.intp), 0, x.size - 1)
-    i1 = np.clip(i0 + 1, 0, x.size - 1)
+    # zero crossings lie inside the signal (0 < start < stop < size): only i0 + 1 can run
+    # past its end, at a crossing on the last sample
+    i0 = np.floor(pos).astype(np.intp)
+    i1 = np.minimum(i0 + 1, x.size - 1)
     frac = pos - i0
     vals = x[i0] * (1 - frac) + x[i1] * frac
-    sign = np.sign(x[np.clip(starts + (stops - starts) // 2, 0, x.size - 1)])
+    sign = np.sign(x[starts + (stops - starts) // 2])
     sign[sign == 0] = 1.0
     vals = vals * sign[:, None]
     vals[:, 0] = 0.0
