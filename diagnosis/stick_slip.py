@@ -551,31 +551,6 @@ def _moves_after(
     )
 
 
-def _candidate(
-    s: int, a: int, b: int, toward: float, travel: float, sig: _Signals, p: StickSlipParams
-) -> tuple[StickSlipEvent, float, float, float, float] | None:
-    """The stuck phase [s, a] ending at OP's turning point ``a`` and the slip on [a, b], when
-    the slip clears the noise checks; with the slow-fast ratio, slip rate against the stuck
-    drift, PV follow share and OP kick share (see ``StickSlipParams``)."""
-    seg = toward * (sig.ys[a : b + 1] - sig.ys[a])
-    # the arrays' own methods: numpy's functions add a dispatch per call (this runs for every
-    # candidate, dozens per window)
-    size = float(seg.max())
-    slope, wander = sig.line(s, a + 1)
-    t_half = max(1, int((seg >= 0.5 * size).argmax()))
-    ratio = (a - s) / t_half
-    if size <= 0.0 or size < p.slip_wander * wander or ratio < p.min_stick_slip_ratio:
-        # a PV that never moves toward the slip (a flat, held or interpolated record) has none
-        return None
-    rate = 0.5 * size / t_half / max(abs(slope), 1e-300)
-    follow = toward * float(sig.ys[a] - sig.ys[s]) / size
-    kick = abs(float(sig.ops[a] - sig.ops[max(s, a - max(2, t_half))])) / travel
-    # the slip ends where the PV has made 90 % of its move (it may creep on after)
-    end = a + max(1, int((seg >= 0.9 * size).argmax()))
-    event = StickSlipEvent(s, a, end, travel, toward * size, strong=False)
-    return event, ratio, rate, follow, kick
-
-
 def _stuck_phases(
     bounds: IntArray, sig: _Signals, p: StickSlipParams
 ) -> list[tuple[int, int, int, float, float]]:
@@ -702,16 +677,17 @@ class _Signals:
         """Mean control error over samples [lo, hi)."""
         return float(self.cum_e[hi] - self.cum_e[lo]) / max(hi - lo, 1)
 
-    def line(self, lo: int, hi: int) -> tuple[float, float]:
-        """Slope (per sample) and residual σ of the straight line through ys[lo:hi]."""
+    def lines(self, lo: IntArray, hi: IntArray) -> tuple[FloatArray, FloatArray]:
+        """Slope (per sample) and residual σ of the straight line through ys[lo:hi], for
+        each pair (hi > lo)."""
         m = hi - lo
-        sy = float(self.cum_y[hi] - self.cum_y[lo])
-        syy = float(self.cum_yy[hi] - self.cum_yy[lo])
-        sky = float(self.cum_ky[hi] - self.cum_ky[lo]) - 0.5 * (lo + hi - 1) * sy
+        sy = self.cum_y[hi] - self.cum_y[lo]
+        syy = self.cum_yy[hi] - self.cum_yy[lo]
+        sky = self.cum_ky[hi] - self.cum_ky[lo] - 0.5 * (lo + hi - 1) * sy
         stt = m * (m * m - 1) / 12.0
-        slope = sky / stt if stt > 0 else 0.0
+        slope = np.where(stt > 0, sky / np.where(stt > 0, stt, 1.0), 0.0)
         var = (syy - sy * sy / m - slope * sky) / m
-        return slope, math.sqrt(max(var, 0.0))
+        return slope, np.sqrt(np.maximum(var, 0.0))
 
 
 def detect_stick_slip(
@@ -898,9 +874,52 @@ def _distinct(events: list[StickSlipEvent], margin: int) -> list[StickSlipEvent]
 def _candidates(
     phases: list[tuple[int, int, int, float, float]], sig: _Signals, p: StickSlipParams
 ) -> list[tuple[tuple[StickSlipEvent, float, float, float, float], int]]:
-    """The phases whose slip clears the checks of ``_candidate``, with their slip end ``b``,
-    largest slips first."""
-    found = [(c, b) for s, a, b, tw, tr in phases if (c := _candidate(s, a, b, tw, tr, sig, p))]
+    """The stuck phases [s, a], each ending at OP's turning point ``a``, whose slip on [a, b]
+    clears the noise checks; with the slow-fast ratio, slip rate against the stuck drift, PV
+    follow share and OP kick share (see ``StickSlipParams``), and ``b``; largest slips first.
+
+    Every phase at once: the slips' samples side by side, each slip's maximum and the first
+    samples past half and 90 % of it read per segment (a day's window has dozens of phases,
+    each a dozen small array calls when taken one by one)."""
+    if not phases:
+        return []
+    s, a, b = (np.array([ph[i] for ph in phases], dtype=np.int64) for i in range(3))
+    toward = np.array([ph[3] for ph in phases])
+    travel = np.array([ph[4] for ph in phases])
+    length = b - a + 1
+    offsets = np.concatenate(([0], np.cumsum(length)[:-1]))
+    at = np.arange(int(length.sum())) + np.repeat(a - offsets, length)
+    # each slip toward the set point from the PV at the turn: its first sample is 0
+    seg = np.repeat(toward, length) * (sig.ys[at] - np.repeat(sig.ys[a], length))
+    size = np.maximum.reduceat(seg, offsets)
+
+    def first_past(share: float) -> IntArray:
+        # samples (from the turn) where the slip first reaches ``share`` of its size: the
+        # turn's own sample at least, as seg starts at 0 <= size
+        hits = np.flatnonzero(seg >= share * np.repeat(size, length))
+        return np.asarray(hits[np.searchsorted(hits, offsets)] - offsets, dtype=np.int64)
+
+    slope, wander = sig.lines(s, a + 1)
+    t_half = np.maximum(1, first_past(0.5))
+    ratio = (a - s) / t_half
+    # a PV that never moves toward the slip (a flat, held or interpolated record) has none
+    ok = ~((size <= 0.0) | (size < p.slip_wander * wander) | (ratio < p.min_stick_slip_ratio))
+    rate = 0.5 * size / t_half / np.maximum(np.abs(slope), 1e-300)
+    with np.errstate(divide="ignore", invalid="ignore"):  # on phases ``ok`` leaves out
+        follow = toward * (sig.ys[a] - sig.ys[s]) / size
+        kick = np.abs(sig.ops[a] - sig.ops[np.maximum(s, a - np.maximum(2, t_half))]) / travel
+    # the slip ends where the PV has made 90 % of its move (it may creep on after)
+    end = a + np.maximum(1, first_past(0.9))
+    found = [
+        ((StickSlipEvent(si, ai, ei, tr, tw * sz, strong=False), ra, rt, fo, ki), bi)
+        for si, ai, bi, ei, tr, tw, sz, ra, rt, fo, ki in zip(
+            *(
+                v[ok].tolist()
+                for v in (s, a, b, end, travel, toward, size, ratio, rate, follow, kick)
+            ),
+            strict=True,
+        )
+    ]
     found.sort(key=lambda cb: -abs(cb[0][0].pv_jump))
     return found
 
