@@ -376,6 +376,26 @@ def _detrended(x: FloatArray) -> FloatArray:
     return np.asarray(centred - ((centred @ t) / tt)[..., None] * t, dtype=np.float64)
 
 
+def _time_axis(n: int) -> tuple[FloatArray, float]:
+    """The time axis of ``n`` samples centred on its middle and its sum of squares (1 for a
+    single sample); read-only, and kept for stretches up to ``_KEPT_AXIS`` samples: the
+    model tests fit a dozen stretches a window, mostly a few dozen to a few hundred long."""
+    return _kept_time_axis(n) if n <= _KEPT_AXIS else _centred_axis(n)
+
+
+_KEPT_AXIS = 2048
+"""Longest time axis kept (256 of them at most: 4 MB)."""
+
+
+def _centred_axis(n: int) -> tuple[FloatArray, float]:
+    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
+    t.flags.writeable = False
+    return t, float(t @ t) or 1.0
+
+
+_kept_time_axis = lru_cache(maxsize=256)(_centred_axis)
+
+
 def _best_fits(
     y: FloatArray, regressors: FloatArray, signs: FloatArray, split: int
 ) -> tuple[float, float]:
@@ -389,8 +409,7 @@ def _best_fits(
     is fitted in the same few array passes. Each row is taken relative to its first value, so
     that a level of 50 % does not swamp a variation of a tenth of a percent."""
     n = y.size
-    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
-    tt = float(t @ t) or 1.0
+    t, tt = _time_axis(n)
     centred = y - y.sum() / n
     r0 = centred - ((centred @ t) / tt) * t  # ``_detrended(y)``, its time axis shared
     rel = regressors - regressors[:, :1]
@@ -415,26 +434,76 @@ class _Dynamics:
     delays: IntArray
     rise_from_zero: FloatArray
     """The unit-step response of every lag (rows), 0 before the step (column 0) and ``k``
-    samples after it in column ``k + 1``: one gather builds the valve-step model, which runs a
-    dozen times per window."""
+    samples after it in column ``k + 1``."""
     pad: int
+    linear_at: IntArray
+    """Where sample 0 of each linear regressor (dead time × lag, delay outer) sits in
+    ``op_lags`` flattened: the model tests gather their rows straight into one array, a dozen
+    times per window, with no copy to reorder or join them."""
+    rise_at: IntArray
+    """Where each lag's row starts in ``rise_from_zero`` flattened."""
+    slip_signs: dict[float, FloatArray]
+    """The sign each coefficient of ``_slip_evidence``'s models must take (``_best_fits``),
+    linear rows then valve steps, for a step toward +1 or −1."""
+    after_signs: FloatArray
+    """The same for ``_moves_after``'s, whose steps may take either sign."""
 
     @property
     def rise(self) -> FloatArray:
         """The unit-step responses from the step on (column ``k``: ``k`` samples after)."""
         return self.rise_from_zero[:, 1:]
 
+    @property
+    def n_linear(self) -> int:
+        """The linear model's regressors."""
+        return int(self.linear_at.size)
+
     @classmethod
-    def of(cls, op: FloatArray, longest: float | None = None) -> _Dynamics:
+    def of(cls, op: FloatArray, longest: float | None = None, gain_sign: int = 1) -> _Dynamics:
         """``longest``: the linear model's longest lag and dead time, samples (None: the
-        grids' own)."""
+        grids' own); ``gain_sign``: the linear model's gain sign."""
         pad = max(DELAY_GRID)
         padded = np.concatenate([np.full(pad, op[0]), op])
         bound = math.inf if longest is None else longest
         lags = [tau for tau in LAG_GRID if tau <= bound]
         delays = np.asarray([d for d in DELAY_GRID if d <= bound], dtype=np.int64)
         poles = [math.exp(-1.0 / tau) if tau > 0 else 0.0 for tau in lags]
-        return cls(first_order_lags(padded, poles), delays, _step_rise(op.size), pad)
+        rise = _step_rise(op.size)
+        row = padded.size
+        linear_at = (np.arange(len(lags))[None, :] * row + pad - delays[:, None]).ravel()
+        lin_signs = np.full(linear_at.size, float(gain_sign))
+
+        def signs(steps: int, toward: float) -> FloatArray:
+            return np.concatenate((lin_signs, np.full(steps * len(LAG_GRID), toward)))
+
+        slip = {toward: signs(_SLIP_STEPS, toward) for toward in (1.0, -1.0)}
+        rise_at = np.arange(len(LAG_GRID), dtype=np.int64) * rise.shape[1]
+        return cls(first_order_lags(padded, poles), delays, rise, pad, linear_at, rise_at,
+                   slip, signs(_AFTER_STEPS, 0.0))  # fmt: skip
+
+    def regressors(self, lo: int, n: int, since: IntArray, integrating: bool) -> FloatArray:
+        """The two models' regressors on samples [lo, lo + n): the linear model's (OP delayed
+        by each dead time, through each lag; ``_linear_rows``), then each valve step's
+        response through each lag, ``since[j]`` (each row of ``since``: samples since step
+        j, −1 before it) (steps × lags). For a level, whose valve sets the PV's slope, both
+        are integrated."""
+        k = np.arange(n)
+        out = np.empty((self.n_linear + since.shape[0] * len(LAG_GRID), n))
+        lin, steps = out[: self.n_linear], out[self.n_linear :]
+        np.take(self.op_lags, self.linear_at[:, None] + (lo + k), out=lin, mode="clip")
+        at = (since[:, None, :] + 1 + self.rise_at[None, :, None]).reshape(-1, n)
+        np.take(self.rise_from_zero, at, out=steps, mode="clip")
+        if integrating:
+            lin[:] = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
+            steps[:] = np.cumsum(steps, axis=1)
+        return out
+
+
+_SLIP_STEPS = 6
+"""Valve steps ``_slip_evidence`` tries: 8 samples before the turn to 2 after, every second."""
+_AFTER_STEPS = 5
+"""Origins of the slip's response ``_moves_after`` tries: the breakaway, and 6 samples before
+the slip's end to its end, every second."""
 
 
 @lru_cache(maxsize=8)
@@ -450,18 +519,6 @@ def _step_rise(size: int) -> FloatArray:
     return out
 
 
-def _linear_rows(dyn: _Dynamics, lo: int, n: int, integrating: bool) -> FloatArray:
-    """The linear model's regressors on samples [lo, lo + n): OP delayed by each dead time,
-    through each lag, (delays × lags, n); for a level, whose valve sets the PV's slope,
-    integrated."""
-    k = np.arange(n)
-    starts = dyn.pad + lo - dyn.delays
-    lin = dyn.op_lags[:, starts[:, None] + k].swapaxes(0, 1).reshape(-1, n)
-    if integrating:
-        lin = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
-    return np.asarray(lin, dtype=np.float64)
-
-
 def _slip_evidence(
     pv: FloatArray,
     dyn: _Dynamics,
@@ -469,7 +526,6 @@ def _slip_evidence(
     a: int,
     b: int,
     toward: float,
-    gain_sign: float,
     integrating: bool,
 ) -> tuple[float, float]:
     """How well a stuck-then-slipping valve and how well OP explain the PV on [s, b].
@@ -485,16 +541,12 @@ def _slip_evidence(
     """
     y = pv[s : b + 1]
     n = y.size
-    k = np.arange(n)
-    lin = _linear_rows(dyn, s, n, integrating)
-    # a valve step a few samples around the turn, through each lag: (offsets × lags, n)
-    # samples since each step; never past the rise's end (n <= the window, a > s)
-    since = k[None, :] - np.arange(a - s - 8, a - s + 3, 2)[:, None]
-    steps = dyn.rise_from_zero[:, np.maximum(since, -1) + 1].swapaxes(0, 1).reshape(-1, n)
-    if integrating:
-        steps = np.cumsum(steps, axis=1)
-    signs = np.concatenate((np.full(len(lin), float(gain_sign)), np.full(len(steps), toward)))
-    return _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
+    # a valve step a few samples around the turn, through each lag: samples since each step,
+    # -1 before it, never past the rise's end (n <= the window, a > s)
+    offsets = np.arange(a - s - 8, a - s + 3, 2)
+    since = np.maximum(np.arange(n)[None, :] - offsets[:, None], -1)
+    regressors = dyn.regressors(s, n, since, integrating)
+    return _best_fits(y, regressors, dyn.slip_signs[toward], dyn.n_linear)
 
 
 def _moves_after(
@@ -503,7 +555,6 @@ def _moves_after(
     sig: _Signals,
     dyn: _Dynamics,
     sp_steps: IntArray,
-    gain_sign: float,
     integrating: bool,
     p: StickSlipParams,
 ) -> bool:
@@ -533,18 +584,13 @@ def _moves_after(
         return False
     y = pv[lo : hi + 1]
     n = y.size
-    k = np.arange(n)
-    lin = _linear_rows(dyn, lo, n, integrating)
     # the slip's response goes on (from the breakaway or around its end), or the valve slips
     # once more, either way
     origins = np.asarray([ev.breakaway, lo - 6, lo - 4, lo - 2, lo])
     # samples since each origin: from 0 (origins <= lo) to below the window's length
-    since = k[None, :] + lo - origins[:, None]
-    steps = dyn.rise[:, since].swapaxes(0, 1).reshape(-1, n)
-    if integrating:
-        steps = np.cumsum(steps, axis=1)
-    signs = np.concatenate((np.full(len(lin), float(gain_sign)), np.zeros(len(steps))))
-    sse_follow, sse_stuck = _best_fits(y, np.concatenate((lin, steps)), signs, len(lin))
+    since = np.arange(n)[None, :] + lo - origins[:, None]
+    regressors = dyn.regressors(lo, n, since, integrating)
+    sse_follow, sse_stuck = _best_fits(y, regressors, dyn.after_signs, dyn.n_linear)
     return (
         sse_stuck >= p.after_ratio * sse_follow
         and (sse_stuck - sse_follow) / sig.noise_var >= p.after_chi2
@@ -775,7 +821,7 @@ def detect_stick_slip(
     events: list[StickSlipEvent] = []
     strong_needed = _needed(p.min_strong_events, p.strong_events_per_1000, n)
     noise_var = sig.noise_var
-    dyn = _Dynamics.of(op, fastest_process)
+    dyn = _Dynamics.of(op, fastest_process, gain_sign)
     # all of OP's travel in the window, from turning point to turning point (``ramp_share``)
     op_travel_total = float(np.abs(np.diff(sig.ops[bounds])).sum())
     sp_steps = np.flatnonzero(np.diff(sp) != 0) + 1
@@ -821,15 +867,13 @@ def detect_stick_slip(
                 readings.append(smoothed)
             spans = dict.fromkeys((st, e) for e in ends for st in starts)
             for (start, end), r in itertools.product(spans, readings):
-                sse = _slip_evidence(
-                    r.pv, dyn, start, ev.breakaway, end, toward, gain_sign, integrating
-                )
+                sse = _slip_evidence(r.pv, dyn, start, ev.breakaway, end, toward, integrating)
                 if _confirms(sse, end - start + 1, r, p):
                     strong = True
                     break
         if strong and kick > p.step_kick_fraction and _near_step(ev, sp_steps, p.jump_horizon):
             strong = False
-        if (strong or fast) and _moves_after(ev, pv, sig, dyn, sp_steps, gain_sign, integrating, p):
+        if (strong or fast) and _moves_after(ev, pv, sig, dyn, sp_steps, integrating, p):
             strong = fast = False
         if strong or fast:
             events.append(replace(ev, strong=strong))
