@@ -26,7 +26,12 @@ from plantcheck.diagnosis.signal_tools import (
     moving_average,
     noise_sigma,
 )
-from plantcheck.diagnosis.spectral_peaks import SpectralPeak, few_cycle_peak, spectral_peaks
+from plantcheck.diagnosis.spectral_peaks import (
+    SpectralPeak,
+    few_cycle_peak,
+    periodogram,
+    spectral_peaks,
+)
 
 __all__ = [
     "SPECTRAL",
@@ -160,10 +165,10 @@ def hagglund_loads(
     return HagglundResult(int(loads.size), float(counter.max(initial=0.0)), hc.count)
 
 
-def dominant_period(x: FloatArray, ts: float) -> float:
+def dominant_period(x: FloatArray, ts: float, power: FloatArray | None = None) -> float:
     """Period (s) of the largest peak of the smoothed power spectrum, DC and the slowest two
-    bins excluded."""
-    spec = np.abs(np.fft.rfft(x - x.mean())) ** 2
+    bins excluded (``power``: the ``periodogram`` of ``x`` where the caller has it)."""
+    spec = periodogram(x) if power is None else power
     if spec.size < 5:
         return ts
     spec = moving_average(spec, 3)
@@ -171,13 +176,13 @@ def dominant_period(x: FloatArray, ts: float) -> float:
     return float(x.size * ts / k)
 
 
-def _band_power(x: FloatArray, ts: float, period_s: float) -> float:
-    """Share of the variance of ``x`` above f_osc/4 that lies within [0.5, 2]·f_osc.
+def _band_power(x: FloatArray, ts: float, period_s: float, spec: FloatArray) -> float:
+    """Share of the variance of ``x`` (its ``periodogram`` ``spec``) above f_osc/4 that lies
+    within [0.5, 2]·f_osc.
 
     Slow wander of the operating point (below a quarter of the oscillation frequency) is left
     out of the reference, so that it does not hide a clear oscillation.
     """
-    spec = np.abs(np.fft.rfft(x - x.mean())) ** 2
     f = np.fft.rfftfreq(x.size, ts)
     f0 = 1.0 / period_s
     total = float(spec[f >= 0.25 * f0].sum())
@@ -207,10 +212,12 @@ def detect_oscillation(
     """
     p = params or OscillationParams()
     xd = detrend(np.asarray(x, dtype=np.float64))
-    composite = _composite(xd, ts, p, pv_range)
+    power = periodogram(xd)
+    power.flags.writeable = False  # shared by every stage below
+    composite = _composite(xd, ts, p, pv_range, power)
     if not p.spectral:
         return composite
-    peaks = _spectral_peaks(xd, ts, p, composite.noise_sigma)
+    peaks = _spectral_peaks(xd, ts, p, composite.noise_sigma, power)
     found = [pk for pk in peaks if pk.oscillating]
     if composite.oscillating and composite.period_s is not None:
         own = SpectralPeak(
@@ -221,7 +228,7 @@ def detect_oscillation(
         return replace(composite, components=(own, *others))
     if found:
         return _from_peak(found[0], composite, tuple(found))
-    few = few_cycle_peak(xd, ts, min_share=p.few_cycle_share)
+    few = few_cycle_peak(xd, ts, min_share=p.few_cycle_share, power=power)
     if few is not None and few.oscillating:
         return _from_peak(few, composite, (few,))
     if few is not None and few.reason.startswith("record too short"):
@@ -248,13 +255,13 @@ def oscillations_json(res: OscillationResult) -> list[dict[str, float | None]]:
 
 
 def _spectral_peaks(
-    xd: FloatArray, ts: float, p: OscillationParams, noise: float
+    xd: FloatArray, ts: float, p: OscillationParams, noise: float, power: FloatArray
 ) -> tuple[SpectralPeak, ...]:
     return spectral_peaks(
         xd, ts, peak_ratio=p.peak_ratio, band=p.peak_band, min_share=p.peak_min_share,
         min_cycles=p.peak_min_cycles, smooth_bins=p.peak_smooth_bins,
         regularity_limit=p.regularity_limit, n_half=p.n_half, min_half=p.min_half,
-        max_peaks=p.max_peaks, noise=noise,
+        max_peaks=p.max_peaks, noise=noise, power=power,
     )  # fmt: skip
 
 
@@ -284,15 +291,16 @@ def _from_peak(
 
 
 def _composite(
-    xd: FloatArray, ts: float, p: OscillationParams, pv_range: float | None
+    xd: FloatArray, ts: float, p: OscillationParams, pv_range: float | None, power: FloatArray
 ) -> OscillationResult:
-    """Hägglund loads + Thornhill regularity + band power on the detrended signal (§2.5)."""
+    """Hägglund loads + Thornhill regularity + band power on the detrended signal (§2.5),
+    ``power`` its ``periodogram``."""
     sigma_n = noise_sigma(xd)
     reg = thornhill_regularity(xd, ts, p.n_half, p.min_half)
     if reg is None or reg.regularity <= p.regularity_limit:
         # Noise shifts the ACF zero crossings; Thornhill et al. (2003) filter first. A low-pass
         # over a quarter of the dominant period keeps the oscillation and its shape.
-        width = max(1, round(dominant_period(xd, ts) / ts / p.lowpass_fraction))
+        width = max(1, round(dominant_period(xd, ts, power) / ts / p.lowpass_fraction))
         if width > 1:
             reg_f = thornhill_regularity(moving_average(xd, width), ts, p.n_half, p.min_half)
             if reg_f is not None and (reg is None or reg_f.regularity > reg.regularity):
@@ -314,7 +322,7 @@ def _composite(
     hag = hagglund_loads(xs, ts, iae_lim, tsup, band)
     hc = half_cycles(xs, ts, band=band, min_samples=2, n_points=4)
     amplitude = float(np.mean(hc.peak)) if hc.count else float(np.std(xd) * math.sqrt(2.0))
-    bp = _band_power(xd, ts, period)
+    bp = _band_power(xd, ts, period, power)
     expected_half = 2.0 * xd.size * ts / period
     n_needed = p.n_lim
     if xd.size * ts < tsup:

@@ -53,7 +53,9 @@ _RANKED_PEAKS = 32
 1/32 of the power of a ranked peak of equal height and are no oscillation worth reporting."""
 
 
-def _periodogram(x: FloatArray) -> FloatArray:
+def periodogram(x: FloatArray) -> FloatArray:
+    """|FFT|² of mean-removed ``x`` at ``np.fft.rfftfreq(x.size)``, squared units of ``x``:
+    the spectrum every oscillation stage reads (computed once per signal and handed on)."""
     return np.abs(np.fft.rfft(x - x.mean())) ** 2
 
 
@@ -98,6 +100,7 @@ def spectral_peaks(
     harmonic_tolerance: float = 0.06,
     max_harmonic: int = 5,
     noise: float | None = None,
+    power: FloatArray | None = None,
 ) -> tuple[SpectralPeak, ...]:
     """Every oscillation among the strongest spectral peaks, strongest first.
 
@@ -113,10 +116,11 @@ def spectral_peaks(
 
     When no peak is an oscillation the result holds only the best-ranked peak with the reason;
     it is empty when the spectrum has no peak at all. ``noise``: the measurement noise σ of
-    ``x`` where the caller has it (``signal_tools.noise_sigma(x)``, else computed here).
+    ``x`` where the caller has it (``signal_tools.noise_sigma(x)``, else computed here), and
+    ``power`` its ``periodogram``.
     """
     n = int(x.size)
-    power = _periodogram(x)
+    power = periodogram(x) if power is None else power
     smooth = moving_average(power, 2 * smooth_bins + 1)
     f = np.asarray(np.fft.rfftfreq(n, ts), dtype=np.float64)
     hi = min(power.size - 1, n // 4)
@@ -204,6 +208,7 @@ def few_cycle_peak(
     min_share: float = 0.8,
     min_cycles: int = 3,
     max_cycles: int = 11,
+    power: FloatArray | None = None,
 ) -> SpectralPeak | None:
     """A slow oscillation with only a few cycles in the record, or None.
 
@@ -214,8 +219,9 @@ def few_cycle_peak(
     the variance. On 14,000 generated records without an oscillation (white and AR(1) noise up
     to φ = 0.999, random walks, steps; 300-1,500 samples) the share passed 0.8 in at most 0.1 %
     of each kind; real slow oscillations of the ISDB development set hold 0.80-0.98 [R].
+    ``power``: the ``periodogram`` of ``x`` where the caller has it.
     """
-    power = _periodogram(x)
+    power = periodogram(x) if power is None else power
     if power.size <= max_cycles + 1:
         return None
     total = float(power[1:].sum())
