@@ -24,11 +24,30 @@ def detrend(x: FloatArray) -> FloatArray:
     n = x.size
     if n < 2:
         return x - x.mean() if n else x
-    t = np.arange(n, dtype=np.float64)
-    t -= t.mean()
+    t, tt = centred_time(n)
     xc = x - x.mean()
-    slope = float(t @ xc) / float(t @ t)
+    slope = float(t @ xc) / tt
     return np.asarray(xc - slope * t, dtype=np.float64)
+
+
+def centred_time(n: int) -> tuple[FloatArray, float]:
+    """Sample indices 0 .. ``n`` − 1 less their mean (n − 1)/2, read-only, and their sum of
+    squares. Kept for up to ``KEPT_TIME_AXIS`` samples: the chain detrends and fits lines on
+    the same few lengths dozens of times per window."""
+    return _kept_centred_time(n) if n <= KEPT_TIME_AXIS else _centred_time(n)
+
+
+KEPT_TIME_AXIS = 8192
+"""Longest time axis ``centred_time`` keeps (128 of them at most: 8 MB)."""
+
+
+def _centred_time(n: int) -> tuple[FloatArray, float]:
+    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
+    t.flags.writeable = False
+    return t, float(t @ t)
+
+
+_kept_centred_time = lru_cache(maxsize=128)(_centred_time)
 
 
 @lru_cache(maxsize=64)

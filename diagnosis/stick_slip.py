@@ -48,6 +48,7 @@ from plantcheck.diagnosis.peaks import peaks_apart, prominent_extremes
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     IntArray,
+    centred_time,
     first_order_lags,
     median,
     moving_average,
@@ -376,26 +377,6 @@ def _detrended(x: FloatArray) -> FloatArray:
     return np.asarray(centred - ((centred @ t) / tt)[..., None] * t, dtype=np.float64)
 
 
-def _time_axis(n: int) -> tuple[FloatArray, float]:
-    """The time axis of ``n`` samples centred on its middle and its sum of squares (1 for a
-    single sample); read-only, and kept for stretches up to ``_KEPT_AXIS`` samples: the
-    model tests fit a dozen stretches a window, mostly a few dozen to a few hundred long."""
-    return _kept_time_axis(n) if n <= _KEPT_AXIS else _centred_axis(n)
-
-
-_KEPT_AXIS = 2048
-"""Longest time axis kept (256 of them at most: 4 MB)."""
-
-
-def _centred_axis(n: int) -> tuple[FloatArray, float]:
-    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
-    t.flags.writeable = False
-    return t, float(t @ t) or 1.0
-
-
-_kept_time_axis = lru_cache(maxsize=256)(_centred_axis)
-
-
 def _best_fits(
     y: FloatArray, regressors: FloatArray, signs: FloatArray, split: int
 ) -> tuple[float, float]:
@@ -409,7 +390,8 @@ def _best_fits(
     is fitted in the same few array passes. Each row is taken relative to its first value, so
     that a level of 50 % does not swamp a variation of a tenth of a percent."""
     n = y.size
-    t, tt = _time_axis(n)
+    t, tt = centred_time(n)
+    tt = tt or 1.0
     centred = y - y.sum() / n
     r0 = centred - ((centred @ t) / tt) * t  # ``_detrended(y)``, its time axis shared
     rel = regressors - regressors[:, :1]
