@@ -6,12 +6,14 @@ so it runs in a worker process while the event loop keeps ingesting and serving.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis import Baseline, ChainParams, diagnose_loop
+from plantcheck.diagnosis import Baseline, diagnose_loop
+from plantcheck.diagnosis.chain import default_chain_params
 from plantcheck.diagnosis.controller_forms import ControllerForm
 from plantcheck.diagnosis.retuning import RetuneParams
 from plantcheck.diagnosis.tuning_proposal import TuningSettings
@@ -63,7 +65,8 @@ def diagnose_window(
         auto=auto,
         loop_type=loop_type,
         quantify=quantify,
-        params=ChainParams(
+        params=replace(
+            default_chain_params(),
             retuning=_retuning(controller or {}),
             dead_time_s=dead_time_s,
         )
