@@ -118,3 +118,14 @@ def test_one_stiction_test_alone_leaves_the_split_to_read_the_cycle() -> None:
     d = diagnose(run.pv, run.op, case.config.sample_time_s, sp=run.sp, loop_type="level")
     assert d.cause == "aggressive_tuning", d.notes
     assert any("stiction not confirmed (1 test for, 0 against)" in n for n in d.notes), d.notes
+
+
+def test_the_shipped_rice_table_is_the_one_scipy_computes_bit_for_bit() -> None:
+    """The envelope table ships as data (scipy.special's import cost a diagnosis 0.15 s):
+    what ``python -m plantcheck.service.rice_table`` writes, exactly."""
+    from plantcheck.diagnosis.cause_split import RICE_NU, _rice_table
+    from plantcheck.service.rice_table import rice_envelope_mean
+
+    shipped, _ = _rice_table()
+    assert np.array_equal(shipped, rice_envelope_mean(RICE_NU))
+    assert shipped[0] == np.sqrt(np.pi / 2) and np.all(np.diff(shipped) > 0)
