@@ -409,15 +409,16 @@ def _best_fits(
 class _Dynamics:
     """Computed once per window: OP through every lag of ``LAG_GRID`` the linear model may use
     (rows; the longest delay of ``DELAY_GRID`` as padding in front; the process state carries
-    over from one event to the next), the dead times it may use, and the unit-step response
-    of every lag over the window's length (the valve-step model uses all of them)."""
+    over from one event to the next), where each dead time it may use reads them, and the
+    unit-step response of every lag over the window's length (the valve-step model uses all
+    of them)."""
 
     op_lags: FloatArray
     delays: IntArray
+    """The dead times the linear model tries, samples."""
     rise_from_zero: FloatArray
     """The unit-step response of every lag (rows), 0 before the step (column 0) and ``k``
     samples after it in column ``k + 1``."""
-    pad: int
     linear_at: IntArray
     """Where sample 0 of each linear regressor (dead time × lag, delay outer) sits in
     ``op_lags`` flattened: the model tests gather their rows straight into one array, a dozen
@@ -429,11 +430,6 @@ class _Dynamics:
     linear rows then valve steps, for a step toward +1 or −1."""
     after_signs: FloatArray
     """The same for ``_moves_after``'s, whose steps may take either sign."""
-
-    @property
-    def rise(self) -> FloatArray:
-        """The unit-step responses from the step on (column ``k``: ``k`` samples after)."""
-        return self.rise_from_zero[:, 1:]
 
     @property
     def n_linear(self) -> int:
@@ -460,12 +456,12 @@ class _Dynamics:
 
         slip = {toward: signs(_SLIP_STEPS, toward) for toward in (1.0, -1.0)}
         rise_at = np.arange(len(LAG_GRID), dtype=np.int64) * rise.shape[1]
-        return cls(first_order_lags(padded, poles), delays, rise, pad, linear_at, rise_at,
-                   slip, signs(_AFTER_STEPS, 0.0))  # fmt: skip
+        return cls(first_order_lags(padded, poles), delays, rise, linear_at, rise_at, slip,
+                   signs(_AFTER_STEPS, 0.0))  # fmt: skip
 
     def regressors(self, lo: int, n: int, since: IntArray, integrating: bool) -> FloatArray:
         """The two models' regressors on samples [lo, lo + n): the linear model's (OP delayed
-        by each dead time, through each lag; ``_linear_rows``), then each valve step's
+        by each dead time, through each lag), then each valve step's
         response through each lag, ``since[j]`` (each row of ``since``: samples since step
         j, −1 before it) (steps × lags). For a level, whose valve sets the PV's slope, both
         are integrated."""
@@ -700,10 +696,6 @@ class _Signals:
     def noise_var(self) -> float:
         """Variance of the PV's noise: the measurement's, or its recording error's."""
         return max(self.sigma_pv**2, self.res_var, 1e-300)
-
-    def mean_e(self, lo: int, hi: int) -> float:
-        """Mean control error over samples [lo, hi)."""
-        return float(self.cum_e[hi] - self.cum_e[lo]) / max(hi - lo, 1)
 
     def lines(self, lo: IntArray, hi: IntArray) -> tuple[FloatArray, FloatArray]:
         """Slope (per sample) and residual σ of the straight line through ys[lo:hi], for

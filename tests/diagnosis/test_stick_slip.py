@@ -496,7 +496,8 @@ def test_the_linear_model_keeps_to_the_process_dynamics_it_is_given() -> None:
     bounded = _Dynamics.of(op, 2.0)
     assert free.op_lags.shape[0] == len(LAG_GRID) and free.delays.tolist() == list(DELAY_GRID)
     assert bounded.op_lags.shape[0] == 3 and bounded.delays.tolist() == [0, 1, 2]
-    assert bounded.rise.shape == free.rise.shape  # the valve step keeps every lag
+    assert bounded.rise_from_zero.shape == free.rise_from_zero.shape  # the step keeps every lag
+    assert bounded.n_linear == 9 and free.n_linear == len(LAG_GRID) * len(DELAY_GRID)
 
 
 def test_the_recording_error_of_a_quantised_and_of_a_compressed_pv() -> None:
