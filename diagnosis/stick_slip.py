@@ -367,16 +367,6 @@ DELAY_GRID = (0, 1, 2, 4, 8)
 """Process dead times tried by the linear model, samples."""
 
 
-def _detrended(x: FloatArray) -> FloatArray:
-    """``x`` (last axis) less its least-squares straight line (closed form: the centred time
-    axis is orthogonal to the constant)."""
-    n = x.shape[-1]
-    t = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
-    tt = float(t @ t) or 1.0
-    centred = x - (x.sum(axis=-1) / n)[..., None]
-    return np.asarray(centred - ((centred @ t) / tt)[..., None] * t, dtype=np.float64)
-
-
 def _best_fits(
     y: FloatArray, regressors: FloatArray, signs: FloatArray, split: int
 ) -> tuple[float, float]:
@@ -393,7 +383,7 @@ def _best_fits(
     t, tt = centred_time(n)
     tt = tt or 1.0
     centred = y - y.sum() / n
-    r0 = centred - ((centred @ t) / tt) * t  # ``_detrended(y)``, its time axis shared
+    r0 = centred - ((centred @ t) / tt) * t  # y less its straight line
     rel = regressors - regressors[:, :1]
     s1 = rel.sum(axis=1)
     st = rel @ t
@@ -409,9 +399,9 @@ def _best_fits(
 class _Dynamics:
     """Computed once per window: OP through every lag of ``LAG_GRID`` the linear model may use
     (rows; the longest delay of ``DELAY_GRID`` as padding in front; the process state carries
-    over from one event to the next), where each dead time it may use reads them, and the
-    unit-step response of every lag over the window's length (the valve-step model uses all
-    of them)."""
+    over from one event to the next), the dead times it may use and where each reads those
+    rows, and the unit-step response of every lag over the window's length (the valve-step
+    model uses all of them)."""
 
     op_lags: FloatArray
     delays: IntArray
@@ -460,11 +450,10 @@ class _Dynamics:
                    signs(_AFTER_STEPS, 0.0))  # fmt: skip
 
     def regressors(self, lo: int, n: int, since: IntArray, integrating: bool) -> FloatArray:
-        """The two models' regressors on samples [lo, lo + n): the linear model's (OP delayed
-        by each dead time, through each lag), then each valve step's
-        response through each lag, ``since[j]`` (each row of ``since``: samples since step
-        j, −1 before it) (steps × lags). For a level, whose valve sets the PV's slope, both
-        are integrated."""
+        """The two models' regressors on samples [lo, lo + n), one row each: the linear
+        model's (OP delayed by each dead time, through each lag), then each valve step's
+        response through each lag (steps × lags; row j of ``since``: samples since step j,
+        −1 before it). For a level, whose valve sets the PV's slope, both are integrated."""
         k = np.arange(n)
         out = np.empty((self.n_linear + since.shape[0] * len(LAG_GRID), n))
         lin, steps = out[: self.n_linear], out[self.n_linear :]
