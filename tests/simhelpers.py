@@ -51,12 +51,22 @@ def scaled_scenario(
     n: int, *, speed: float = 1.0, modbus_port: int | None = None, opcua: bool = False
 ) -> Scenario:
     """``n`` copies of the default scenario's loops (ids L00000…), servers on free ports and
-    no admin port: the plant of the capacity and ingest benchmarks."""
+    no admin port: the plant of the capacity and ingest benchmarks. A loop whose load comes
+    from another loop's cycle (``from_loop``) takes it from that loop's copy in its own group
+    of copies, which comes before it as in the original."""
     base = load_scenario()
-    loops = [
-        LoopSpec.model_validate({**base.loop[i % len(base.loop)].model_dump(), "id": f"L{i:05d}"})
-        for i in range(n)
-    ]
+    index = {lp.id: k for k, lp in enumerate(base.loop)}
+    m = len(base.loop)
+
+    def copy(i: int) -> LoopSpec:
+        spec = base.loop[i % m].model_dump()
+        group = i - i % m
+        for d in spec.get("disturbances", []):
+            if d.get("from_loop"):
+                d["from_loop"] = f"L{group + index[d['from_loop']]:05d}"
+        return LoopSpec.model_validate({**spec, "id": f"L{i:05d}"})
+
+    loops = [copy(i) for i in range(n)]
     sc = scenario_on_free_ports(base, speed=speed)
     return sc.model_copy(
         update={
