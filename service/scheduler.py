@@ -147,6 +147,21 @@ def _warm() -> None:
     """Imported in each worker at start, so the first diagnosis does not pay for imports."""
 
 
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""What a worker's BLAS reads its thread count from, at load."""
+
+
+def one_blas_thread_per_worker() -> None:
+    """Start worker processes with one BLAS thread each, unless the environment says
+    otherwise. A diagnosis multiplies matrices of a few thousand values, where OpenBLAS's
+    threads only spin: a worker on 2 cores burnt 27-30 ms of CPU per 1-h loop window with
+    them and 17 ms without, at the same wall time (``benchmarks/service.py``). A spawned
+    worker loads numpy before any initializer runs, so the setting goes into the
+    environment it inherits (the service's own numpy, loaded already, keeps its threads)."""
+    for name in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
+
+
 class DiagnosisScheduler:
     """Owns the APScheduler instance and the worker pool of one service."""
 
@@ -217,6 +232,7 @@ class DiagnosisScheduler:
         """Start the worker processes (spawned: no inherited event loop or database handles)
         and read the loops' tag mapping."""
         self._loops = await self.store.loops()
+        one_blas_thread_per_worker()
         ctx = multiprocessing.get_context("spawn")
         self._pool = ProcessPoolExecutor(
             max_workers=self.workers,
