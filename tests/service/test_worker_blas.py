@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import asyncio
 import os
+from pathlib import Path
 
 import pytest
 
 from plantcheck.service.config import Config
 from plantcheck.service.runtime import schedules_of
 from plantcheck.service.scheduler import BLAS_THREAD_VARIABLES, DiagnosisScheduler
+from plantcheck.storage.database import upgrade
 from plantcheck.storage.store import Store
 
 CONFIG = Config.model_validate(
@@ -28,8 +30,11 @@ def blas_settings() -> dict[str, str | None]:
 
 @pytest.mark.parametrize("preset", [None, "2"])
 def test_workers_get_one_blas_thread_unless_the_environment_says(
-    db_url: str, monkeypatch: pytest.MonkeyPatch, preset: str | None
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, preset: str | None
 ) -> None:
+    """On SQLite alone: the store only gives the scheduler its loops."""
+    db_url = f"sqlite+aiosqlite:///{tmp_path / 'store.db'}"
+    upgrade(db_url)
     for name in BLAS_THREAD_VARIABLES:
         monkeypatch.delenv(name, raising=False)
     if preset is not None:
