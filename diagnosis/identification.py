@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     block_means,
+    centred_time,
     detrend,
     first_order_lags,
     log_grid,
@@ -164,8 +165,7 @@ def _sse_grid(
     yc = np.zeros(xc.shape[1] - reach)
     for seg, o in zip(segments, offsets.tolist(), strict=True):
         ys = y[seg]
-        t = np.arange(ys.size, dtype=np.float64) - (ys.size - 1) / 2.0
-        tt = float(t @ t)
+        t, tt = centred_time(ys.size)
         yc[o : o + ys.size] = ys - ys.mean() - (t * (float(t @ ys) / tt) if tt > 0 else 0.0)
     syy = float(yc @ yc)
     width = yc.size
