@@ -354,9 +354,10 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     seg_len = segment[1] - segment[0]
     needed = max(p.min_samples, p.min_segment_samples)
     segments = tuple(s for s in stretches if s[1] - s[0] >= needed)
+    op_noise = noise_sigma(op_f)  # every report from here on carries it
     if steps.size == 0 and (w.clamp.fraction == 0 or seg_len < needed):
         return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, w.quantised,
-                            error_noise=sigma_e, op_noise=noise_sigma(op_f))  # fmt: skip
+                            error_noise=sigma_e, op_noise=op_noise)  # fmt: skip
     if seg_len < needed:
         notes.append(
             f"{steps.size} set-point step(s) with their responses leave no settled stretch of "
@@ -364,7 +365,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
         )
         return WindowReport(
             "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, w.quantised, True,
-            tuple(steps.tolist()), error_noise=sigma_e, op_noise=noise_sigma(op_f),
+            tuple(steps.tolist()), error_noise=sigma_e, op_noise=op_noise,
         )  # fmt: skip
     if steps.size:
         notes.append(
@@ -380,7 +381,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     indices["sp_steps"] = float(steps.size)
     return WindowReport(
         None, notes, pv_f, op_f, sp_f, segment, indices, w.quantised, False,
-        tuple(steps.tolist()), segments, sigma_e, noise_sigma(op_f),
+        tuple(steps.tolist()), segments, sigma_e, op_noise,
     )  # fmt: skip
 
 
