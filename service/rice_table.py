@@ -39,7 +39,10 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=RICE_TABLE)
     args = ap.parse_args(argv)
-    write_table(args.out)
+    try:
+        write_table(args.out)
+    except OSError as exc:
+        ap.exit(2, f"rice_table: cannot write --out {args.out}: {exc.strerror or exc}\n")
     print(f"wrote {args.out}")
 
 

@@ -3,6 +3,8 @@ disturbance comes at the loop's own period (issue 25 item 4)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -129,3 +131,17 @@ def test_the_shipped_rice_table_is_the_one_scipy_computes_bit_for_bit() -> None:
     shipped, _ = _rice_table()
     assert np.array_equal(shipped, rice_envelope_mean(RICE_NU))
     assert shipped[0] == np.sqrt(np.pi / 2) and np.all(np.diff(shipped) > 0)
+
+
+def test_rebuilding_the_rice_table_into_a_missing_folder_is_refused_by_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from plantcheck.service.rice_table import main
+
+    out = tmp_path / "missing" / "rice.npz"
+    with pytest.raises(SystemExit) as stop:
+        main(["--out", str(out)])
+    assert stop.value.code == 2
+    assert f"cannot write --out {out}" in capsys.readouterr().err
+    main(["--out", str(tmp_path / "rice.npz")])
+    assert (tmp_path / "rice.npz").is_file()
