@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray, detrend
+from plantcheck.diagnosis.signal_tools import FloatArray, detrend, hann, percentile
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult
 
 
@@ -85,7 +85,7 @@ def squared_bicoherence(
     idx = start0 + np.arange(n_seg)[:, None] * step + np.arange(nfft)[None, :]
     seg = x[idx]
     seg = seg - seg.mean(axis=1, keepdims=True)
-    spec = np.fft.rfft(seg * np.hanning(nfft)[None, :], axis=1)
+    spec = np.fft.rfft(seg * hann(nfft)[None, :], axis=1)
     f1, f2 = _principal_domain(nfft)
     x1 = spec[:, f1]
     x2 = spec[:, f2]
@@ -93,7 +93,7 @@ def squared_bicoherence(
     prod = x1 * x2
     bisp = np.mean(prod * np.conj(x3), axis=0)
     den = np.mean(np.abs(prod) ** 2, axis=0) * np.mean(np.abs(x3) ** 2, axis=0)
-    eps = float(np.percentile(den, 75)) if den.size else 0.0
+    eps = percentile(den, 75.0) if den.size else 0.0
     b2 = np.abs(bisp) ** 2 / (den + eps + 1e-300)
     return np.asarray(b2, dtype=np.float64), int(n_seg)
 

@@ -45,12 +45,23 @@ class _Walk:
     feature: IndexArray
     threshold: FloatArray
     missing_left: BoolArray
+    reads: IndexArray
+    """Where each node reads its input in ``_Walk.inputs``: its input, among the copies that
+    send a missing value where the node does."""
     children: IndexArray
     """(2, slots): the slot a node goes to when it goes right (row 0) or left (row 1)."""
     cell: IndexArray
     value: FloatArray
     roots: IndexArray
     base: FloatArray
+
+    @staticmethod
+    def inputs(x: FloatArray) -> FloatArray:
+        """``x`` twice, a missing input (NaN) read as +inf in the first copy and as −inf in
+        the second: ``x <= threshold`` then sends it right or left with no test for NaN on
+        the walk (every threshold is finite)."""
+        nan = np.isnan(x)
+        return np.concatenate((np.where(nan, np.inf, x), np.where(nan, -np.inf, x)))
 
 
 def _walk_layout(model: CauseModel) -> _Walk:
@@ -76,12 +87,17 @@ def _walk_layout(model: CauseModel) -> _Walk:
     right = np.concatenate([k[0] + starts[d + 1] for d, k in enumerate(kids)] + [last])
     left = np.concatenate([k[1] + starts[d + 1] for d, k in enumerate(kids)] + [last])
     slot = np.concatenate(levels)
+    feature = np.where(leaf, 0, model.feature)[slot]
+    missing_left = np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left)[slot]
+    if not np.all(np.isfinite(model.threshold[~leaf])):
+        raise ValueError("a tree splits at an infinite threshold: the walk reads NaN as ±inf")
     # indices in 32 bits: the layout is a tenth of a process' memory, and the walk reads them
     # as fast as 64-bit ones
     return _Walk(
-        feature=np.where(leaf, 0, model.feature)[slot].astype(np.int32),
+        feature=feature.astype(np.int32),
         threshold=model.threshold[slot],
-        missing_left=np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left)[slot],
+        missing_left=missing_left,
+        reads=(missing_left * n_feat + feature).astype(np.int32),
         children=np.stack([right, left]).astype(np.int32),
         cell=(model.tree_class[tree_of] * n_feat + np.where(leaf, 0, model.feature))[slot].astype(
             np.int32
@@ -195,11 +211,11 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
     whatever the number of trees; the contributions are summed once, over the whole path."""
     n_cls, n_feat = len(model.classes), len(model.features)
     w = model.walk
+    inputs = w.inputs(x)
     idx = w.roots
     path = [idx]
     for _ in range(model.depth - 1):
-        xv = x[w.feature[idx]]
-        go_left = np.where(np.isnan(xv), w.missing_left[idx], xv <= w.threshold[idx])
+        go_left = inputs[w.reads[idx]] <= w.threshold[idx]
         idx = w.children[go_left.view(np.uint8), idx]
         path.append(idx)
     visited = np.concatenate(path)

@@ -6,6 +6,7 @@ times are in seconds only where a sample time ``ts`` is passed explicitly.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -68,11 +69,20 @@ def fast_fft_length(n: int) -> int:
     return best
 
 
+@lru_cache(maxsize=32)
+def hann(n: int) -> FloatArray:
+    """``np.hanning(n)``, read-only and kept per length: the chain tapers a dozen segments of
+    the same few lengths per window, and building the taper cost more than applying it."""
+    w = np.hanning(n)
+    w.flags.writeable = False
+    return w
+
+
 def hann_power(x: FloatArray, nfft: int | None = None) -> FloatArray:
     """Periodogram of mean-removed ``x`` through a Hann window (Welch 1967, one segment):
     |FFT|² at the ``nfft // 2 + 1`` frequencies ``np.fft.rfftfreq(nfft)`` (default
     ``nfft = len(x)``), in the squared units of ``x``."""
-    power: FloatArray = np.abs(np.fft.rfft((x - np.mean(x)) * np.hanning(x.size), nfft)) ** 2
+    power: FloatArray = np.abs(np.fft.rfft((x - np.mean(x)) * hann(x.size), nfft)) ** 2
     return power
 
 
@@ -121,6 +131,26 @@ def median(x: FloatArray) -> float:
         return float(np.partition(x, (h, h + 1))[h] if n > 1 else x[0])
     part = np.partition(x, (h - 1, h))
     return float((part[h - 1] + part[h]) / 2.0)
+
+
+def percentile(x: FloatArray, q: float) -> float:
+    """``numpy.percentile(x, q)`` of a 1-D array without NaN (its default, linear
+    interpolation: Hyndman & Fan 1996's definition 7), the same value to the bit, through
+    one ``numpy.partition`` at the order statistics it reads: ``numpy.percentile``'s own
+    handling cost ten times the partition on the few hundred values the chain asks of it
+    (0.12 ms of a window)."""
+    n = x.size
+    if n == 1:
+        return float(x[0])
+    virtual = (n - 1) * (q / 100.0)
+    lo = min(max(math.floor(virtual), 0), n - 1)
+    hi = min(lo + 1, n - 1)
+    # numpy's own order statistics (the ends as well), so that even the sign of a zero agrees
+    part = np.partition(x, sorted({-1, 0, lo, hi}))
+    a, b = float(part[lo]), float(part[hi])
+    gamma = virtual - lo
+    # numpy's _lerp: from the nearer end, so that gamma 1 gives b exactly
+    return b - (b - a) * (1.0 - gamma) if gamma >= 0.5 else a + (b - a) * gamma
 
 
 def noise_sigma(x: FloatArray) -> float:

@@ -287,6 +287,9 @@ class StickSlipResult:
     jump_median: float | None
     reversals: int
     unresponsive: str | None
+    process_gain: tuple[float | None] | None = None
+    """``process_gain(pv, op, gain_sign)`` in a 1-tuple where the search read it (the
+    events' S/J reads it again otherwise)."""
 
 
 def _resolution(x: FloatArray) -> float:
@@ -794,7 +797,7 @@ def detect_stick_slip(
     raw_ramp = _Reading(pv, noise_var, p.evidence_ratio_ramp, p.evidence_ratio_ramp_fitted)
     m = max(1, p.evidence_smooth_samples)
     smoothed = _Reading(
-        moving_average(pv, m),
+        sig.ys if m == w and not integrating else moving_average(pv, m),
         noise_var / m,
         p.evidence_ratio_smooth,
         p.evidence_ratio_smooth_fitted,
@@ -843,7 +846,10 @@ def detect_stick_slip(
         if len(events) >= p.max_events:
             break
     events = _distinct(events, p.jump_horizon)
-    return _reading(tuple(events), n, p)
+    result = _reading(tuple(events), n, p)
+    if integrating or not ranked:
+        return result
+    return replace(result, process_gain=(gain,))
 
 
 class _Reading(NamedTuple):
@@ -1021,10 +1027,13 @@ def size_from_events(
 ) -> EventSize | None:
     """S and J from the events (Kano et al. 2004: the OP travel accumulated while stuck is the
     stickband), or None without events. ``reliable`` needs ``min_events`` events whose travels
-    spread by at most ``max_spread`` (relative σ) and a readable process gain."""
+    spread by at most ``max_spread`` (relative σ) and a readable process gain (the one the
+    search read, where it did: ``result`` must be the events of this ``pv``, ``op`` and
+    ``gain_sign``)."""
     if result.travel_median is None or result.jump_median is None:
         return None
-    gain = process_gain(pv, op, gain_sign)
+    read = result.process_gain
+    gain = process_gain(pv, op, gain_sign) if read is None else read[0]
     S = result.travel_median
     J = min(S, result.jump_median / abs(gain)) if gain else None
     reasons = []

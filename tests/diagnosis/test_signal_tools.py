@@ -13,8 +13,10 @@ from plantcheck.diagnosis.signal_tools import (
     first_order_recursion,
     first_peaks,
     half_cycles,
+    hann,
     log_grid,
     noise_sigma,
+    percentile,
     round_significant,
     zero_crossings,
 )
@@ -122,3 +124,20 @@ def test_round_significant_is_the_formatted_value() -> None:
     rng = np.random.default_rng(3)
     x = np.concatenate([rng.lognormal(0, 5, 5000) * rng.choice([-1, 1], 5000), [0.0, 12345.678]])
     assert round_significant(x, 4) == [float(f"{v:.4g}") for v in x]
+
+
+def test_percentile_is_numpys_to_the_bit() -> None:
+    """The bicoherence's conditioning level: ``numpy.percentile``'s value, the sign of a zero
+    included, on sizes from 1, quantised values with ties, and any percentile."""
+    rng = np.random.default_rng(7)
+    for trial in range(3000):
+        x = rng.standard_normal(int(rng.integers(1, 500))) * 10 ** rng.uniform(-12, 12)
+        if trial % 3 == 0:
+            x = np.round(x / np.max(np.abs(x)), 1)
+        q = float(rng.choice([0.0, 5.0, 25.0, 50.0, 75.0, 99.0, 100.0, rng.uniform(0, 100)]))
+        assert repr(percentile(x.copy(), q)) == repr(float(np.percentile(x, q))), (x.size, q)
+
+
+def test_hann_is_numpys_taper_and_read_only() -> None:
+    w = hann(64)
+    assert np.array_equal(w, np.hanning(64)) and not w.flags.writeable
