@@ -22,9 +22,11 @@ from plantcheck.diagnosis.signal_tools import (
     bandpass,
     detrend,
     first_order_recursion,
-    half_cycles,
+    half_cycle_bounds,
+    half_cycle_iae,
     moving_average,
     noise_sigma,
+    segment_max,
 )
 from plantcheck.diagnosis.spectral_peaks import (
     SpectralPeak,
@@ -156,13 +158,14 @@ def hagglund_loads(
     load when its IAE (units·s) exceeds ``iae_lim`` = 2a/ω. Loads feed the counter
     x(k) = γ·x(k−1) + l(k), γ = 1 − ts/T_sup.
     """
-    hc = half_cycles(e - e.mean(), ts, band=band, min_samples=1, n_points=4)
-    loads = hc.stops[hc.iae > iae_lim]
+    x = e - e.mean()
+    starts, stops = half_cycle_bounds(x, band, 1)
+    loads = stops[half_cycle_iae(np.abs(x), starts, stops, ts) > iae_lim]
     impulses = np.zeros(e.size)
     impulses[np.clip(loads, 0, e.size - 1)] = 1.0
     gamma = max(0.0, 1.0 - ts / tsup_s)
     counter = first_order_recursion(impulses, gamma)
-    return HagglundResult(int(loads.size), float(counter.max(initial=0.0)), hc.count)
+    return HagglundResult(int(loads.size), float(counter.max(initial=0.0)), int(starts.size))
 
 
 def dominant_period(x: FloatArray, ts: float, power: FloatArray | None = None) -> float:
@@ -320,8 +323,12 @@ def _composite(
     iae_lim = a * period / math.pi  # 2a/ω with ω = 2π/Tp
     tsup = p.tsup_periods * period
     hag = hagglund_loads(xs, ts, iae_lim, tsup, band)
-    hc = half_cycles(xs, ts, band=band, min_samples=2, n_points=4)
-    amplitude = float(np.mean(hc.peak)) if hc.count else float(np.std(xd) * math.sqrt(2.0))
+    starts, stops = half_cycle_bounds(xs, band, 2)
+    amplitude = (
+        float(np.mean(segment_max(np.abs(xs), starts, stops)))
+        if starts.size
+        else float(np.std(xd) * math.sqrt(2.0))
+    )
     bp = _band_power(xd, ts, period, power)
     expected_half = 2.0 * xd.size * ts / period
     n_needed = p.n_lim

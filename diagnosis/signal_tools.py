@@ -392,21 +392,11 @@ def half_cycles(
     ``min_samples``. Each kept half-cycle is linearly resampled to ``n_points`` points on
     normalised time [0, 1], both ends pinned to zero.
     """
-    zc = zero_crossings(x, band)
-    if zc.size < 2:
-        empty_i = np.empty(0, dtype=np.intp)
-        return HalfCycles(np.empty((0, n_points)), empty_i, empty_i, np.empty(0), np.empty(0))
-    starts = zc[:-1]
-    stops = zc[1:]
-    keep = (stops - starts) >= min_samples
-    starts, stops = starts[keep], stops[keep]
+    starts, stops = half_cycle_bounds(x, band, min_samples)
     n_half = starts.size
-    ax = np.abs(x)
-    csum = np.concatenate(([0.0], np.cumsum(ax)))
-    iae = (csum[stops] - csum[starts]) * ts
     if n_half == 0:
-        empty_i = np.empty(0, dtype=np.intp)
-        return HalfCycles(np.empty((0, n_points)), empty_i, empty_i, np.empty(0), np.empty(0))
+        return HalfCycles(np.empty((0, n_points)), starts, stops, np.empty(0), np.empty(0))
+    ax = np.abs(x)
     # Resample every half-cycle at once: positions start + s*(len) for s in (0, 1).
     s = np.linspace(0.0, 1.0, n_points)
     length = (stops - starts).astype(np.float64)
@@ -426,7 +416,27 @@ def half_cycles(
     rms[rms == 0] = 1.0
     shapes = vals / rms[:, None]
     # peak over the raw samples of each half-cycle (stop < x.size always holds)
-    return HalfCycles(shapes, starts, stops, iae, segment_max(ax, starts, stops))
+    return HalfCycles(shapes, starts, stops, half_cycle_iae(ax, starts, stops, ts),
+                      segment_max(ax, starts, stops))  # fmt: skip
+
+
+def half_cycle_bounds(x: FloatArray, band: float, min_samples: int) -> tuple[IntArray, IntArray]:
+    """First and past-the-last sample of each of ``half_cycles``'s half-cycles: where a
+    caller needs no shapes, the resampling is left out (``hagglund_loads`` reads only the
+    areas, the oscillation's amplitude only the peaks)."""
+    zc = zero_crossings(x, band)
+    if zc.size < 2:
+        empty = np.empty(0, dtype=np.intp)
+        return empty, empty
+    starts, stops = zc[:-1], zc[1:]
+    keep = (stops - starts) >= min_samples
+    return starts[keep], stops[keep]
+
+
+def half_cycle_iae(ax: FloatArray, starts: IntArray, stops: IntArray, ts: float) -> FloatArray:
+    """Σ|x|·ts over each half-cycle (signal units × s), from ``ax`` = |x|."""
+    csum = np.concatenate(([0.0], np.cumsum(ax)))
+    return np.asarray((csum[stops] - csum[starts]) * ts, dtype=np.float64)
 
 
 def _segment_reduce(op: np.ufunc, x: FloatArray, starts: IntArray, stops: IntArray) -> FloatArray:
