@@ -146,10 +146,15 @@ class _PrefixSums:
 
     @classmethod
     def of(cls, x: FloatArray, y: FloatArray, ok: NDArray[np.bool_]) -> _PrefixSums:
-        """``x``: the regressors as rows (3, samples), ``y``: ΔOP, both zero where not ``ok``."""
-        xx = np.cumsum(np.stack([x[i] * x[j] for i, j in _PAIRS]), axis=1)
-        return cls(xx, np.cumsum(x * y, axis=1), np.cumsum(y * y), np.cumsum(y),
-                   np.cumsum(ok.astype(np.float64)))  # fmt: skip
+        """``x``: the regressors as rows (3, samples), ``y``: ΔOP, both zero where not ``ok``.
+
+        The constant regressor is 1 exactly where ``ok`` (and 0 elsewhere, as every row), so
+        its products are the other row as it is: 10 running sums, in one pass, give the 12."""
+        x0, x1 = x[0], x[1]
+        okf = ok.astype(np.float64)
+        products = [x0 * x0, x0 * x1, x0, x1 * x1, x1, okf, x0 * y, x1 * y, y * y, y]
+        run = np.cumsum(np.stack(products), axis=1)
+        return cls(run[:6], run[[6, 7, 9]], run[8], run[9], run[5])
 
     def _sides(self, at: NDArray[np.int64], less: bool) -> tuple[FloatArray, ...]:
         def pick(t: FloatArray) -> FloatArray:

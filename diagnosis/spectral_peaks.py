@@ -62,14 +62,18 @@ def periodogram(x: FloatArray) -> FloatArray:
 def _peak_ratios(smooth: FloatArray, cand: np.ndarray) -> FloatArray:
     """Height of each candidate over the median of its surroundings [f/2, 2f] outside ±25 %."""
     ratios = np.empty(cand.size)
+    size = int(smooth.size)
     for k, c in enumerate(cand.tolist()):
-        lo, hi = max(1, c // 2), min(int(smooth.size), 2 * c + 1)
+        lo, hi = max(1, c // 2), min(size, 2 * c + 1)
         # bins below 0.8 f and above 1.25 f, as two slices (a masked gather per peak cost more
         # than the median)
-        below = smooth[lo : max(lo, min(math.ceil(0.8 * c), hi))]
-        above = smooth[min(max(math.floor(1.25 * c) + 1, lo), hi) : hi]
-        ring = np.concatenate((below, above))
-        ratios[k] = smooth[c] / median(ring) if ring.size else 0.0
+        b = max(lo, min(math.ceil(0.8 * c), hi))
+        a = min(max(math.floor(1.25 * c) + 1, lo), hi)
+        if b - lo + hi - a == 0:
+            ratios[k] = 0.0
+            continue
+        ring = np.concatenate((smooth[lo:b], smooth[a:hi]))
+        ratios[k] = smooth[c] / median(ring)
     return ratios
 
 
