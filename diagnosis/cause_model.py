@@ -42,12 +42,10 @@ class _Walk:
     contribution cell (class × input) is its tree's class and input; ``base`` is each class's
     sum of its trees' root values, the same for every input."""
 
-    feature: IndexArray
     threshold: FloatArray
-    missing_left: BoolArray
     reads: IndexArray
-    """Where each node reads its input in ``_Walk.inputs``: its input, among the copies that
-    send a missing value where the node does."""
+    """Where each node reads its input in ``_Walk.inputs``: its input, in the copy that sends
+    a missing value where the node does (LightGBM decides that once per node)."""
     children: IndexArray
     """(2, slots): the slot a node goes to when it goes right (row 0) or left (row 1)."""
     cell: IndexArray
@@ -94,14 +92,10 @@ def _walk_layout(model: CauseModel) -> _Walk:
     # indices in 32 bits: the layout is a tenth of a process' memory, and the walk reads them
     # as fast as 64-bit ones
     return _Walk(
-        feature=feature.astype(np.int32),
         threshold=model.threshold[slot],
-        missing_left=missing_left,
         reads=(missing_left * n_feat + feature).astype(np.int32),
         children=np.stack([right, left]).astype(np.int32),
-        cell=(model.tree_class[tree_of] * n_feat + np.where(leaf, 0, model.feature))[slot].astype(
-            np.int32
-        ),
+        cell=(model.tree_class[tree_of][slot] * n_feat + feature).astype(np.int32),
         value=model.value[slot],
         roots=np.arange(model.roots.size, dtype=np.int32),
         base=np.bincount(
