@@ -47,18 +47,20 @@ def play(x: FloatArray, width: float) -> FloatArray:
     """The play (backlash) operator: the output follows ``x`` only once it has moved ``width``
     away, staying ``width`` / 2 behind it; moves within the band leave it where it is."""
     x = np.asarray(x, dtype=np.float64)
-    out = np.empty_like(x)
     if x.size == 0:
-        return out
+        return np.empty_like(x)
     half = width / 2.0
     y = float(x[0])
-    for i, v in enumerate(x.tolist()):
+    # a Python list, not numpy item assignment: a tenth of the loop's time
+    out: list[float] = []
+    keep = out.append
+    for v in x.tolist():
         if v > y + half:
             y = v - half
         elif v < y - half:
             y = v + half
-        out[i] = y
-    return out
+        keep(y)
+    return np.array(out)
 
 
 @dataclass(frozen=True)

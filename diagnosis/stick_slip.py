@@ -674,14 +674,12 @@ class _Signals:
     ) -> _Signals:
         yc = ys - float(np.mean(ys))  # sums of squares without cancellation
         k = np.arange(ys.size, dtype=np.float64)
-
-        def run(x: FloatArray) -> FloatArray:
-            return np.concatenate(([0.0], np.cumsum(x)))
-
+        # the four running sums in one pass, each from 0 before the first sample
+        runs = np.zeros((4, ys.size + 1))
+        np.cumsum(np.stack((e, yc, yc * yc, k * yc)), axis=1, out=runs[:, 1:])
         sigma_y, sigma_op, sigma_pv, res, res_var = noise
         return cls(
-            ys, ops, sigma_y, sigma_op, sigma_pv, res, res_var, w, int(ys.size),
-            run(e), run(yc), run(yc * yc), run(k * yc),
+            ys, ops, sigma_y, sigma_op, sigma_pv, res, res_var, w, int(ys.size), *runs
         )  # fmt: skip
 
     @property
