@@ -44,6 +44,7 @@ from plantcheck.diagnosis.signal_tools import (
     first_order_lags,
     log_grid,
     noise_sigma,
+    sorted_unique,
 )
 
 ModelKind = Literal["fopdt", "ipdt"]
@@ -293,7 +294,8 @@ def _coarse_delays(max_d: int, points: int = 32) -> NDArray[np.int64]:
     if max_d <= 12:
         return dense.astype(np.int64)
     wide = log_grid(13, max_d, points - dense.size)
-    return np.unique(np.concatenate([dense, np.round(wide)])).astype(np.int64)
+    # ascending already: 0 .. 12, then a log grid from 13 up, rounded
+    return sorted_unique(np.concatenate([dense, np.round(wide)])).astype(np.int64)
 
 
 def _search(
@@ -346,9 +348,8 @@ def _search(
 def _fine_delays(d0: int, width: int) -> NDArray[np.int64]:
     """At most 17 whole dead times (samples) across the coarse grid's step either side of
     its best ``d0``."""
-    return np.unique(
-        np.round(np.linspace(max(0, d0 - width), d0 + width, min(2 * width + 1, 17)))
-    ).astype(np.int64)
+    grid = np.round(np.linspace(max(0, d0 - width), d0 + width, min(2 * width + 1, 17)))
+    return sorted_unique(grid).astype(np.int64)
 
 
 def _fractional(x: NDArray[np.float64], frac: float) -> NDArray[np.float64]:

@@ -398,7 +398,7 @@ def half_cycles(
         return HalfCycles(np.empty((0, n_points)), starts, stops, np.empty(0), np.empty(0))
     ax = np.abs(x)
     # Resample every half-cycle at once: positions start + s*(len) for s in (0, 1).
-    s = np.linspace(0.0, 1.0, n_points)
+    s = unit_grid(n_points)
     length = (stops - starts).astype(np.float64)
     pos = starts[:, None] + s[None, :] * length[:, None]
     # zero crossings lie inside the signal (0 < start < stop < size): only i0 + 1 can run
@@ -418,6 +418,23 @@ def half_cycles(
     # peak over the raw samples of each half-cycle (stop < x.size always holds)
     return HalfCycles(shapes, starts, stops, half_cycle_iae(ax, starts, stops, ts),
                       segment_max(ax, starts, stops))  # fmt: skip
+
+
+@lru_cache(maxsize=8)
+def unit_grid(n: int) -> FloatArray:
+    """``np.linspace(0, 1, n)``, read-only and kept per ``n`` (the half-cycles' common time
+    base, built twice a window)."""
+    s = np.linspace(0.0, 1.0, n)
+    s.flags.writeable = False
+    return s
+
+
+def sorted_unique(x: NDArray[np.generic]) -> NDArray[np.generic]:
+    """``np.unique`` of an array already sorted ascending: the first of each run of equal
+    values, without ``np.unique``'s sort and checks (a few dozen values, twice a window)."""
+    if x.size < 2:
+        return x.copy()
+    return x[np.concatenate(([True], x[1:] != x[:-1]))]
 
 
 def half_cycle_bounds(x: FloatArray, band: float, min_samples: int) -> tuple[IntArray, IntArray]:

@@ -18,6 +18,8 @@ from plantcheck.diagnosis.signal_tools import (
     noise_sigma,
     percentile,
     round_significant,
+    sorted_unique,
+    unit_grid,
     zero_crossings,
 )
 
@@ -141,3 +143,13 @@ def test_percentile_is_numpys_to_the_bit() -> None:
 def test_hann_is_numpys_taper_and_read_only() -> None:
     w = hann(64)
     assert np.array_equal(w, np.hanning(64)) and not w.flags.writeable
+
+
+def test_sorted_unique_and_unit_grid_are_numpys() -> None:
+    """The identification's dead-time grids and the half-cycles' time base."""
+    rng = np.random.default_rng(5)
+    for size in (0, 1, 2, 17, 40):
+        x = np.sort(np.round(rng.uniform(0, 20, size)))
+        assert np.array_equal(sorted_unique(x), np.unique(x))
+    assert np.array_equal(unit_grid(32), np.linspace(0.0, 1.0, 32))
+    assert not unit_grid(32).flags.writeable
