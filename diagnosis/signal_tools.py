@@ -28,7 +28,9 @@ def detrend(x: FloatArray) -> FloatArray:
     t, tt = centred_time(n)
     xc = x - x.mean()
     slope = float(t @ xc) / tt
-    return np.asarray(xc - slope * t, dtype=np.float64)
+    out = np.asarray(xc, dtype=np.float64)  # xc itself unless x was not float64
+    out -= slope * t  # in place: out is this call's own
+    return out
 
 
 def centred_time(n: int) -> tuple[FloatArray, float]:
