@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.signal_tools import FloatArray, sorted_unique
 from plantcheck.diagnosis.tuning import pi_settings
 
 
@@ -110,9 +110,7 @@ def find_controller_change(
     y = np.where(ok, y, 0.0)
     sums = _PrefixSums.of(x, y, ok)
     lo, hi = p.min_side_samples, n - 1 - p.min_side_samples
-    spaced = np.linspace(lo, hi, p.candidates).astype(np.int64)
-    # what np.unique gives of this sorted grid, without its sort
-    coarse = spaced[np.concatenate(([True], spaced[1:] != spaced[:-1]))]
+    coarse = sorted_unique(np.linspace(lo, hi, p.candidates).astype(np.int64))
     best = _best_split(sums, coarse, ts, p)
     if best is None:
         return None

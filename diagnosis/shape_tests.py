@@ -24,6 +24,7 @@ from plantcheck.diagnosis.signal_tools import (
     first_peaks,
     fit_error_to_templates,
     half_cycles,
+    unit_grid,
 )
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult, three_way
 
@@ -65,14 +66,9 @@ class ShapeParams:
 
 
 @cache
-def _s() -> FloatArray:
-    return np.linspace(0.0, 1.0, N_POINTS)
-
-
-@cache
 def sine_template() -> FloatArray:
     """Positive half sine on normalised time [0, 1], shape (1, N_POINTS)."""
-    return np.sin(np.pi * _s())[None, :]
+    return np.sin(np.pi * unit_grid(N_POINTS))[None, :]
 
 
 @cache
@@ -82,7 +78,7 @@ def relay_templates(n_tau: int = 24) -> FloatArray:
     y = 1 − e^{−s/τ} up to the switch s_w = 1 + τ·ln((1 + e^{−1/τ})/2), then
     (y(s_w) + 1)·e^{−(s − s_w)/τ} − 1, which returns to zero at s = 1.
     """
-    s = _s()[None, :]
+    s = unit_grid(N_POINTS)[None, :]
     tau = np.logspace(np.log10(0.02), np.log10(5.0), n_tau)[:, None]
     s_w = 1.0 + tau * np.log((1.0 + np.exp(-1.0 / tau)) / 2.0)
     rise = 1.0 - np.exp(-s / tau)
@@ -96,7 +92,7 @@ def relay_templates(n_tau: int = 24) -> FloatArray:
 @cache
 def triangle_templates(n_apex: int = 19) -> FloatArray:
     """Triangles with the apex at 0.05…0.95 of the half-cycle (He et al. 2007)."""
-    s = _s()[None, :]
+    s = unit_grid(N_POINTS)[None, :]
     apex = np.linspace(0.05, 0.95, n_apex)[:, None]
     return np.asarray(np.where(s <= apex, s / apex, (1.0 - s) / (1.0 - apex)), dtype=np.float64)
 

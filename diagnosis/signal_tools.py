@@ -10,11 +10,13 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+ScalarT = TypeVar("ScalarT", bound=np.generic)
 IntArray = NDArray[np.intp]
 
 _MAD_TO_SIGMA = 1.4826
@@ -431,9 +433,10 @@ def unit_grid(n: int) -> FloatArray:
     return s
 
 
-def sorted_unique(x: NDArray[np.generic]) -> NDArray[np.generic]:
+def sorted_unique(x: NDArray[ScalarT]) -> NDArray[ScalarT]:
     """``np.unique`` of an array already sorted ascending: the first of each run of equal
-    values, without ``np.unique``'s sort and checks (a few dozen values, twice a window)."""
+    values, without ``np.unique``'s sort and checks (the identification's dead-time grids and
+    the controller-change search's split points, each window)."""
     if x.size < 2:
         return x.copy()
     return x[np.concatenate(([True], x[1:] != x[:-1]))]
