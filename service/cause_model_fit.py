@@ -48,6 +48,8 @@ LGBM_PARAMS: dict[str, Any] = {
     "feature_fraction": 0.8,
     "lambda_l2": 1.0,
     "verbose": -1,
+    "deterministic": True,
+    "force_col_wise": True,
 }
 """LightGBM's settings: trees of at most 5 levels, row and column subsampling (the library's
 usual guards against fitting the corpus' accidents). With 64,000 fit windows these trees read
@@ -57,6 +59,13 @@ the chain 0.3 ms (benchmarks/README.md)."""
 
 ROUNDS = 600
 """Boosting rounds (trees per class)."""
+
+FIT_THREADS = 2
+"""LightGBM's threads, fixed whatever the machine's cores, with its ``deterministic`` and
+``force_col_wise`` settings: the histograms' sums depend on how the rows are split between
+threads, and the row/column choice on a timing test, so a fit on every core gave other trees
+on a machine with another core count (the twenty-fifth session's rebuild). Fixed, the same
+cached evidence gives the same model file on 1 or 2 cores (tested) at about 40 s on 2."""
 
 FIT_WINDOWS = 64_000
 """The default number of fit windows (``plantcheck model fit``, the accuracy benchmark)."""
@@ -172,7 +181,7 @@ def fit_trees(
     import lightgbm
 
     params = {**LGBM_PARAMS, **(changed or {}), "num_class": len(CLASSES), "seed": seed,
-              "num_threads": os.cpu_count() or 1}  # fmt: skip
+              "num_threads": FIT_THREADS}  # fmt: skip
     return lightgbm.train(params, lightgbm.Dataset(x, label=y), num_boost_round=rounds)
 
 
@@ -325,7 +334,7 @@ def fit_model(
     booster = fit_trees(fit.x, fit.y)
     meta: dict[str, object] = {
         "library": "lightgbm",
-        "params": {**LGBM_PARAMS, "rounds": ROUNDS},
+        "params": {**LGBM_PARAMS, "rounds": ROUNDS, "num_threads": FIT_THREADS},
         "seeds": {"fit": fit_s, "calibration": cal_s, "check": chk_s},
         "windows": {
             "fit": int(fit.y.size),
