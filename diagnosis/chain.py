@@ -354,8 +354,10 @@ def _with_kpis(run: _Run) -> None:
     )  # fmt: skip
 
 
-def _run_chain(run: _Run) -> _Run:
-    """The chain's steps on a checked window, then the learned decision where it applies."""
+def _run_chain(run: _Run, gather: bool = False) -> _Run:
+    """The chain's steps on a checked window, then the learned decision where it applies.
+    ``gather``: gather the evidence the rules' path did not need even without a model to
+    weigh it (``chain_evidence``: the corpus must show the fit what a diagnosis serves)."""
     win, p = run.win, run.p
     if not (_read_events(run) or _window_verdict(run)):
         stretch = run.stretch = _find_oscillation(run)
@@ -363,8 +365,9 @@ def _run_chain(run: _Run) -> _Run:
             _judge_oscillation(run, stretch)
         else:
             _judge_quiet_loop(run, stretch)
-    if p.cause_model is not None and _judged(win):
+    if (gather or p.cause_model is not None) and _judged(win):
         _gather(run)
+    if p.cause_model is not None and _judged(win):
         _weigh(run, p.cause_model)
     _too_short(run)
     if _judged(win):
@@ -415,7 +418,7 @@ def chain_evidence(
     op = np.asarray(op, dtype=np.float64)
     win = check_window(pv, op, sp, auto, p.window)
     diag = DiagnosisDraft(loop_type, "standard", int(pv.size), ts, "ok", 0.0, False)
-    run = _run_chain(_Run(win, ts, loop_type, p, False, False, diag))
+    run = _run_chain(_Run(win, ts, loop_type, p, False, False, diag), gather=True)
     return diag.cause, (_evidence(run) if _judged(win) else None)
 
 

@@ -334,6 +334,8 @@ def fit_model(
     booster = fit_trees(fit.x, fit.y)
     meta: dict[str, object] = {
         "library": "lightgbm",
+        "corpus_version": CORPUS_VERSION,
+        "evidence_version": EVIDENCE_VERSION,
         "params": {**LGBM_PARAMS, "rounds": ROUNDS, "num_threads": FIT_THREADS},
         "seeds": {"fit": fit_s, "calibration": cal_s, "check": chk_s},
         "windows": {
