@@ -65,7 +65,8 @@ FIT_THREADS = 2
 ``force_col_wise`` settings: the histograms' sums depend on how the rows are split between
 threads, and the row/column choice on a timing test, so a fit on every core gave other trees
 on a machine with another core count (the twenty-fifth session's rebuild). Fixed, the same
-cached evidence gives the same model file on 1 or 2 cores (tested) at about 40 s on 2."""
+cached evidence gives the same model file on 1 or 2 cores (checked by hand: three fits, one
+confined to one core, wrote the same bytes; benchmarks/README.md) at about 40 s on 2."""
 
 FIT_WINDOWS = 64_000
 """The default number of fit windows (``plantcheck model fit``, the accuracy benchmark)."""
