@@ -11,11 +11,15 @@ threshold, feature or model was chosen on. Test sets only: read the figures, nev
 The refinery set has its own scorer: ``python3 ../shared/tools/score_real.py stiction -- CMD``
 (``CMD ... --decision learned`` for the learned decision).
 
-    python benchmarks/transfer_real.py
+    python benchmarks/transfer_real.py [--model FILE]
+
+``--model FILE``: read with another model file than the shipped one (``plantcheck model fit
+--out FILE``, say with ``--tree-seed``: how far one fit's readings of these records are a draw).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -26,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from isdb import ACCEPTED, SHARED, load_isdb
 
 from plantcheck.diagnosis import Baseline, ChainParams, baseline_from, diagnose
+from plantcheck.diagnosis.cause_model import load_cause_model
 
 TEP = SHARED / "data" / "tep-braatz"
 TEP_FILES = {"d00": "normal", "d04": "IDV(4) step", "d11": "IDV(11) random",
@@ -46,7 +51,15 @@ def tep_baseline() -> Baseline:
 
 
 def main() -> None:
-    rules, learned = ChainParams(decide_by="rules"), ChainParams(decide_by="learned")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", type=Path, help="model file (default: the shipped one)")
+    args = ap.parse_args()
+    if args.model is None:
+        rules, learned = ChainParams(decide_by="rules"), ChainParams(decide_by="learned")
+    else:
+        model = load_cause_model(args.model)
+        rules = ChainParams(decide_by="rules", cause_model=model)
+        learned = ChainParams(decide_by="learned", cause_model=model)
     loops = load_isdb()
     if not loops:
         print("ISDB: ../shared/data absent, skipped")

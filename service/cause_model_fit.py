@@ -322,9 +322,11 @@ def fit_model(
     progress: Callable[[str], None] | None = None,
     cache: Path | None = None,
     seeds: Sequence[int] = (FIT_SEED, CALIBRATION_SEED, CHECK_SEED),
+    tree_seed: int = 0,
 ) -> FitReport:
     """Fit on ``windows`` windows of the fit seed, calibrate and check on
-    ``side_windows(windows)`` of the other two; the exported model and its check figures."""
+    ``side_windows(windows)`` of the other two; the exported model and its check figures.
+    ``tree_seed``: LightGBM's seed for its row and column subsampling."""
     say = progress or (lambda _m: None)
     fit_s, cal_s, chk_s = seeds
     small = side_windows(windows)
@@ -332,13 +334,13 @@ def fit_model(
     cal = corpus_evidence(cal_s, small, jobs, say, cache)
     chk = corpus_evidence(chk_s, small, jobs, say, cache)
     say(f"fitting {ROUNDS} rounds on {fit.y.size} windows")
-    booster = fit_trees(fit.x, fit.y)
+    booster = fit_trees(fit.x, fit.y, seed=tree_seed)
     meta: dict[str, object] = {
         "library": "lightgbm",
         "corpus_version": CORPUS_VERSION,
         "evidence_version": EVIDENCE_VERSION,
         "params": {**LGBM_PARAMS, "rounds": ROUNDS, "num_threads": FIT_THREADS},
-        "seeds": {"fit": fit_s, "calibration": cal_s, "check": chk_s},
+        "seeds": {"fit": fit_s, "calibration": cal_s, "check": chk_s, "trees": tree_seed},
         "windows": {
             "fit": int(fit.y.size),
             "calibration": int(cal.y.size),

@@ -43,6 +43,14 @@ def fit_cmd(
     cache: Annotated[
         Path | None, typer.Option(help="Folder keeping the corpus' evidence between runs.")
     ] = None,
+    tree_seed: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="LightGBM's seed for its row and column subsampling (the shipped fits use 0; "
+            "other seeds show how far one fit's readings are a draw).",
+        ),
+    ] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print the figures as JSON.")] = False,
 ) -> None:
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
@@ -63,7 +71,9 @@ def fit_cmd(
     out = out or SHIPPED_MODEL
 
     t0 = time.monotonic()
-    rep = fit_model(windows, jobs, lambda m: print(m, file=sys.stderr, flush=True), cache)
+    rep = fit_model(
+        windows, jobs, lambda m: print(m, file=sys.stderr, flush=True), cache, tree_seed=tree_seed
+    )
     save_model(rep.model, out)
     figures = {
         "model": str(out),

@@ -151,13 +151,15 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     from plantcheck.diagnosis.evidence import FEATURE_NAMES
 
     out = tmp_path / "m.npz"
-    r = run_cli("model", "fit", "--windows", "60", "--out", str(out), "--jobs", "2", "--json")
+    r = run_cli("model", "fit", "--windows", "60", "--out", str(out), "--jobs", "2", "--json",
+                "--tree-seed", "3")  # fmt: skip
     assert r.returncode == 0, r.stderr
     figures = json.loads(r.stdout)
     assert figures["windows"]["fit"] >= 55 and 0.0 <= figures["check_macro_f1"] <= 1.0
     assert "corpus seed" in r.stderr  # progress on stderr
     model = load_cause_model(out)
     assert model.features == FEATURE_NAMES and model.meta["library"] == "lightgbm"
+    assert model.meta["seeds"]["trees"] == 3 and model.meta["params"]["num_threads"] == 2
 
 
 def test_model_fit_defaults_to_the_fit_modules_window_count() -> None:
