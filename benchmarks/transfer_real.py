@@ -57,6 +57,8 @@ def main() -> None:
     if args.model is None:
         rules, learned = ChainParams(decide_by="rules"), ChainParams(decide_by="learned")
     else:
+        if not args.model.is_file():
+            sys.exit(f"--model {args.model}: no such file (plantcheck model fit --out writes one)")
         model = load_cause_model(args.model)
         rules = ChainParams(decide_by="rules", cause_model=model)
         learned = ChainParams(decide_by="learned", cause_model=model)
