@@ -162,6 +162,22 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     assert model.meta["seeds"]["trees"] == 3 and model.meta["params"]["num_threads"] == 2
 
 
+def test_model_fit_refuses_an_unwritable_output_before_it_draws(
+    run_cli: RunCli, tmp_path: Path
+) -> None:
+    """A path that cannot be written is named at once, not after the corpus' half-hour draw."""
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    for args, option in (
+        (["--out", str(a_file / "m.npz")], "--out"),
+        (["--out", str(tmp_path)], "--out"),
+        (["--out", str(tmp_path / "m.npz"), "--cache", str(a_file / "cache")], "--cache"),
+    ):
+        r = run_cli("model", "fit", "--windows", "60", *args)
+        assert r.returncode == 2 and f"plantcheck: error: {option} " in r.stderr, r.stderr
+        assert "corpus seed" not in r.stderr and "Traceback" not in r.stderr
+
+
 def test_model_fit_defaults_to_the_fit_modules_window_count() -> None:
     """The CLI keeps its own copy of the default (importing the fit module would cost every
     command's start-up numpy and scipy): the two must agree."""
