@@ -1,8 +1,11 @@
-"""Helpers shared by the command modules: one-line errors and duration parsing."""
+"""Helpers shared by the command modules: one-line errors, writable output folders and
+duration parsing."""
 
 from __future__ import annotations
 
+import os
 import re
+from pathlib import Path
 
 import typer
 
@@ -13,6 +16,20 @@ def fail(message: str, code: int = 2) -> typer.Exit:
     """Print ``plantcheck: error: message`` on stderr; return the Exit to raise."""
     typer.echo(f"plantcheck: error: {message}", err=True)
     return typer.Exit(code)
+
+
+def writable_folder(folder: Path, option: str) -> None:
+    """Create ``folder`` if needed and check that it can be written, naming ``option``."""
+    if folder.exists() and not folder.is_dir():
+        raise fail(f"{option}: {folder} is a file, not a folder; choose a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise fail(
+            f"{option}: cannot create {folder} ({exc.strerror}); choose a writable path"
+        ) from None
+    if not os.access(folder, os.W_OK):
+        raise fail(f"{option}: {folder} is not writable; choose a writable path")
 
 
 def parse_duration(text: str) -> float:

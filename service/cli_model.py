@@ -5,7 +5,6 @@ only."""
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -13,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from plantcheck.service.cli_common import fail
+from plantcheck.service.cli_common import fail, writable_folder
 
 model_app = typer.Typer(
     help="The learned cause decision: rebuild it from the simulated corpus.",
@@ -73,9 +72,9 @@ def fit_cmd(
     # before the corpus' draw (up to half an hour): a path found unwritable after it wastes it
     if out.is_dir():
         raise fail(f"--out {out}: is a folder; give the model file's path (e.g. {out}/model.npz)")
-    _writable_folder(out.parent, f"--out {out}")
+    writable_folder(out.parent, f"--out {out}")
     if cache is not None:
-        _writable_folder(cache, f"--cache {cache}")
+        writable_folder(cache, f"--cache {cache}")
 
     t0 = time.monotonic()
     rep = fit_model(
@@ -102,15 +101,3 @@ def fit_cmd(
     )
     for cause, f1 in figures["check_class_f1"].items():  # type: ignore[attr-defined]
         typer.echo(f"  {cause:22s} F1 {f1}")
-
-
-def _writable_folder(folder: Path, option: str) -> None:
-    """Create ``folder`` if needed and check that it can be written, naming ``option``."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise fail(
-            f"{option}: cannot create {folder} ({exc.strerror}); choose a writable path"
-        ) from None
-    if not os.access(folder, os.W_OK):
-        raise fail(f"{option}: {folder} is not writable; choose a writable path")

@@ -9,7 +9,12 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from plantcheck.service.cli_common import fail, parse_duration, parse_host_port
+from plantcheck.service.cli_common import (
+    fail,
+    parse_duration,
+    parse_host_port,
+    writable_folder,
+)
 from plantcheck.service.logs import configure_for_command
 
 if TYPE_CHECKING:
@@ -120,6 +125,7 @@ def simulate_cmd(
             raise fail("--export-map: the file name must end in .csv or .toml")
         if map_protocol not in ("modbus", "opcua"):
             raise fail(f"--map-protocol must be modbus or opcua, not {map_protocol!r}")
+        writable_folder(export_map.parent, f"--export-map {export_map}")
         text = (
             map_csv(scenario)
             if export_map.suffix == ".csv"
@@ -139,6 +145,7 @@ def simulate_cmd(
             seconds = parse_duration(duration)
         except ValueError as exc:
             raise fail(f"--duration: {exc}") from None
+        writable_folder(to_csv, f"--to-csv {to_csv}")
         start = scenario.clock.start or datetime.now(UTC).replace(microsecond=0)
 
         def progress(frac: float) -> None:

@@ -178,6 +178,19 @@ def test_model_fit_refuses_an_unwritable_output_before_it_draws(
         assert "corpus seed" not in r.stderr and "Traceback" not in r.stderr
 
 
+def test_simulate_names_an_output_path_it_cannot_write(run_cli: RunCli, tmp_path: Path) -> None:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    for args, option in (
+        (["--to-csv", str(a_file), "--duration", "1m"], "--to-csv"),
+        (["--to-csv", str(a_file / "records"), "--duration", "1m"], "--to-csv"),
+        (["--export-map", str(a_file / "map.csv")], "--export-map"),
+    ):
+        r = run_cli("simulate", *args)
+        assert r.returncode == 2 and f"plantcheck: error: {option} " in r.stderr, r.stderr
+        assert "Traceback" not in r.stderr and "internal error" not in r.stderr
+
+
 def test_model_fit_defaults_to_the_fit_modules_window_count() -> None:
     """The CLI keeps its own copy of the default (importing the fit module would cost every
     command's start-up numpy and scipy): the two must agree."""
