@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from plantcheck.service.cli_common import fail, parse_host_port
+from plantcheck.service.cli_common import fail, parse_host_port, writable_folder
 from plantcheck.service.cli_store import ConfigOpt, _config, migrate_or_fail
 from plantcheck.service.logs import configure_for_command
 
@@ -299,6 +299,8 @@ def demo_cmd(
         except ValueError as exc:
             raise fail(f"--admin: {exc} (or 'off')") from None
         _check_port(admin_host, admin_port, "choose another with --admin")
+    if data_dir is not None:
+        writable_folder(data_dir, f"--data-dir {data_dir}")
     with contextlib.ExitStack() as stack:
         if data_dir is None:
             data_dir = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="plantcheck-")))

@@ -42,6 +42,14 @@ def test_demo_refuses_a_bad_admin_address_before_it_starts(run_cli: RunCli) -> N
     assert busy.returncode != 0 and "choose another with --admin" in busy.stderr, busy.stderr
 
 
+def test_demo_names_a_data_dir_it_cannot_write(run_cli: RunCli, tmp_path: Path) -> None:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    r = run_cli("demo", "--data-dir", str(a_file / "demo"), "--port", str(free_port()))
+    assert r.returncode == 2 and "plantcheck: error: --data-dir " in r.stderr, r.stderr
+    assert "internal error" not in r.stderr
+
+
 def test_help_says_it_whole_and_every_reference_resolves(run_cli: RunCli) -> None:
     """Issue 47: summaries cut off with "...", no default shown for --speed, "about 2 minutes"
     where the README says one, and "contracts §2" that no file in the repository holds."""
