@@ -365,10 +365,10 @@ def _run_chain(run: _Run, gather: bool = False) -> _Run:
             _judge_oscillation(run, stretch)
         else:
             _judge_quiet_loop(run, stretch)
-    if (gather or p.cause_model is not None) and _judged(win):
+    if _judged(win) and (gather or p.cause_model is not None):
         _gather(run)
-    if p.cause_model is not None and _judged(win):
-        _weigh(run, p.cause_model)
+        if p.cause_model is not None:
+            _weigh(run, p.cause_model)
     _too_short(run)
     if _judged(win):
         _against_baseline(run)

@@ -304,7 +304,6 @@ def demo_cmd(
     with contextlib.ExitStack() as stack:
         if data_dir is None:
             data_dir = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="plantcheck-")))
-        data_dir.mkdir(parents=True, exist_ok=True)
         for old in data_dir.glob("demo*.db*"):
             old.unlink()
         from plantcheck.storage.database import upgrade
