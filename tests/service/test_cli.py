@@ -32,7 +32,7 @@ def test_demo_refuses_a_bad_admin_address_before_it_starts(run_cli: RunCli) -> N
     the fix for an address it cannot use, and starts nothing (no port, no database)."""
     import socket
 
-    bad = run_cli("demo", "--admin", "nowhere")
+    bad = run_cli("demo", "--admin", "nowhere", "--port", str(free_port()))
     assert bad.returncode != 0 and "--admin" in bad.stderr and "off" in bad.stderr, bad.stderr
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
