@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.cause_model import calibrated, shipped_cause_model
+from plantcheck.diagnosis.cause_model import shipped_cause_model
 from plantcheck.service.cause_model_fit import (
     CALIBRATION_SEED,
     CHECK_SEED,
@@ -34,10 +35,13 @@ from plantcheck.service.cause_model_fit import (
     fit_temperature,
     fit_trees,
     macro_f1,
+    model_probabilities,
     raw_scores,
     reliability,
     side_windows,
+    with_blend,
 )
+from plantcheck.service.shape_model_fit import CorpusShapes, corpus_shapes, fit_shape_net
 from plantcheck.simulator.corpus import CLASSES, FAMILIES
 
 CACHE = Path(__file__).resolve().parents[1] / "build" / "corpus"
@@ -109,7 +113,10 @@ def main() -> None:
         sys.exit("no shipped model: run plantcheck model fit first")
     small = side_windows(a.windows)
     chk = corpus_evidence(CHECK_SEED, small, progress=say, cache=CACHE)
-    p = calibrated(raw_scores(model, chk.x), model.temperature)
+    chk_shapes = None
+    if model.shape is not None:
+        chk_shapes = corpus_shapes(CHECK_SEED, small, progress=say, cache=CACHE)
+    p = model_probabilities(model, chk, chk_shapes)
     pred = p.argmax(axis=1)
     mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
     rules = np.array([CLASSES.index(r) if r in CLASSES else -1 for r in chk.rules])
@@ -129,7 +136,7 @@ def main() -> None:
     print("accuracy per family (learned / rules, windows):")
     accuracy_per_family(chk, pred, rules)
     if a.left_out:
-        left_out(a.windows, chk, pred, families)
+        left_out(a.windows, chk, chk_shapes, pred, families)
 
 
 def accuracy_per_family(
@@ -153,26 +160,61 @@ def accuracy_per_family(
 
 
 def left_out(
-    windows: int, chk: object, pred: np.ndarray, families: tuple[tuple[str, str], ...] = LEFT_OUT
+    windows: int,
+    chk: CorpusEvidence,
+    chk_shapes: CorpusShapes | None,
+    pred: np.ndarray,
+    families: tuple[tuple[str, str], ...] = LEFT_OUT,
 ) -> None:
-    """Fit without each of ``families``, test on its check windows."""
+    """Fit without each of ``families``, test on its check windows: the trees, and the shape
+    network (on the judged fit windows of the other families) blended in as the shipped model
+    is, when it has one."""
     fit = corpus_evidence(FIT_SEED, windows, progress=say, cache=CACHE)
-    cal = corpus_evidence(CALIBRATION_SEED, side_windows(windows), progress=say, cache=CACHE)
+    small = side_windows(windows)
+    cal = corpus_evidence(CALIBRATION_SEED, small, progress=say, cache=CACHE)
+    shapes = None
+    if chk_shapes is not None:
+        shapes = (corpus_shapes(FIT_SEED, windows, progress=say, cache=CACHE),
+                  corpus_shapes(CALIBRATION_SEED, small, progress=say, cache=CACHE))  # fmt: skip
     print("left-out family          windows  full model  fitted without  drop   (accuracy)")
     for key, value in families:
         keep = np.array(fit.family[key]) != value
         booster = fit_trees(fit.x[keep], fit.y[keep])
         cal_keep = np.array(cal.family[key]) != value
         m = export_trees(booster, 1.0, {})
-        t = fit_temperature(raw_scores(m, cal.x[cal_keep]), cal.y[cal_keep])
-        fam = np.array(chk.family[key]) == value  # type: ignore[attr-defined]
-        y = chk.y[fam]  # type: ignore[attr-defined]
-        p_out = calibrated(raw_scores(m, chk.x[fam]), t).argmax(axis=1)  # type: ignore[attr-defined]
+        m = replace(m, temperature=fit_temperature(raw_scores(m, cal.x[cal_keep]), cal.y[cal_keep]))
+        fam = np.array(chk.family[key]) == value
+        chk_fam = _rows(chk, fam)
+        fam_shapes = None
+        if shapes is not None and chk_shapes is not None:
+            fit_shapes, cal_shapes = shapes
+            net = fit_shape_net(_judged_rows(fit_shapes, keep), progress=say)
+            m = with_blend(replace(m, shape=net), _rows(cal, cal_keep),
+                           _judged_rows(cal_shapes, cal_keep))  # fmt: skip
+            fam_shapes = _judged_rows(chk_shapes, fam)
+        y = chk.y[fam]
+        p_out = model_probabilities(m, chk_fam, fam_shapes).argmax(axis=1)
         full, out = float(np.mean(pred[fam] == y)), float(np.mean(p_out == y))
         print(
             f"{key + '=' + value:24s} {int(fam.sum()):7d}  {full:10.3f}  {out:14.3f}  "
-            f"{full - out:+.3f}"
+            f"{full - out:+.3f}",
+            flush=True,
         )
+
+
+def _rows(ev: CorpusEvidence, keep: NDArray[np.bool_]) -> CorpusEvidence:
+    """The windows of ``ev`` where ``keep`` holds."""
+    fam = {k: tuple(np.array(v)[keep].tolist()) for k, v in ev.family.items()}
+    rules = tuple(np.array(ev.rules)[keep].tolist())
+    return CorpusEvidence(ev.x[keep], ev.y[keep], rules, fam, ev.samples[keep], 0)
+
+
+def _judged_rows(shapes: CorpusShapes, keep: NDArray[np.bool_]) -> CorpusShapes:
+    """The judged windows of ``shapes`` (the evidence's rows) where ``keep`` holds: families
+    are known for those only."""
+    rows = np.flatnonzero(shapes.judged)[keep]
+    return CorpusShapes(shapes.channels[rows], shapes.scalars[rows], shapes.y[rows],
+                        np.ones(rows.size, dtype=bool))  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -8,6 +8,11 @@ scores are calibrated by one temperature (Guo et al. 2017) fitted on simulated w
 seeds the trees never saw. Each input's contribution to a class is read along the decision
 path (Saabas 2014: the change in a node's value that the split on that input made), so the
 contributions and the trees' base values add up to the raw score exactly.
+
+A model may also hold a small network that reads the window's shape (``signal_shape``): the
+trees' calibrated log-probabilities and the network's are then blended, (1 − w)·log p_trees
++ w·log p_shape, and calibrated once more by a second temperature, both fitted on the
+calibration seed (a weighted product of experts, Hinton 2002; Guo et al. 2017).
 """
 
 from __future__ import annotations
@@ -19,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+
+from plantcheck.diagnosis.signal_shape import ShapeInput, ShapeNet, shape_log_probabilities
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -129,12 +136,22 @@ class CauseModel:
     depth: int
     temperature: float
     meta: dict[str, object]
+    shape: ShapeNet | None = None
+    """The shape network blended with the trees (None: the trees decide alone)."""
+    shape_weight: float = 0.0
+    """w: the network's weight in the blend of log-probabilities."""
+    blend_temperature: float = 1.0
+    """The blend's own softmax temperature."""
 
     def to_arrays(self) -> dict[str, NDArray[np.generic]]:
         """The arrays ``np.savez`` writes (the metadata as UTF-8 JSON bytes)."""
         head = {"classes": self.classes, "features": self.features, "depth": self.depth,
-                "temperature": self.temperature, "meta": self.meta}  # fmt: skip
+                "temperature": self.temperature, "meta": self.meta,
+                "shape_weight": self.shape_weight,
+                "blend_temperature": self.blend_temperature}  # fmt: skip
+        shape = {} if self.shape is None else self.shape.to_arrays(SHAPE_PREFIX)
         return {
+            **shape,
             "head": np.frombuffer(json.dumps(head).encode(), dtype=np.uint8),
             # node indices fit 32 bits and inputs 16 (``load_cause_model`` widens them again)
             "feature": self.feature.astype(np.int16),
@@ -163,6 +180,8 @@ class Decision:
     raw: FloatArray
     base: FloatArray
     contributions: FloatArray
+    shape_probabilities: FloatArray | None = None
+    """The shape network's own probabilities, where it was blended in."""
 
 
 def load_cause_model(path: Path) -> CauseModel:
@@ -184,7 +203,18 @@ def load_cause_model(path: Path) -> CauseModel:
             depth=int(head["depth"]),
             temperature=float(head["temperature"]),
             meta=dict(head.get("meta") or {}),
+            shape=ShapeNet.from_arrays(dict(z), SHAPE_PREFIX) if _has_shape(z) else None,
+            shape_weight=float(head.get("shape_weight", 0.0)),
+            blend_temperature=float(head.get("blend_temperature", 1.0)),
         )
+
+
+SHAPE_PREFIX = "shape_"
+"""The shape network's arrays in a model file are named with this prefix."""
+
+
+def _has_shape(z: np.lib.npyio.NpzFile) -> bool:
+    return f"{SHAPE_PREFIX}scalar_mean" in z.files
 
 
 SHIPPED_MODEL = Path(__file__).with_name("models") / MODEL_FILE
@@ -198,10 +228,11 @@ def shipped_cause_model() -> CauseModel | None:
     return load_cause_model(SHIPPED_MODEL) if SHIPPED_MODEL.is_file() else None
 
 
-def decide(model: CauseModel, x: FloatArray) -> Decision:
+def decide(model: CauseModel, x: FloatArray, shape: ShapeInput | None = None) -> Decision:
     """Walk every tree at once for the input vector ``x`` (``model.features`` order, NaN =
     not computed): raw scores per class, their Saabas contributions, and the probabilities
-    softmax(raw / temperature). The cost is a few numpy calls per level of the deepest tree,
+    softmax(raw / temperature), blended with the shape network's reading of ``shape`` where
+    the model has one. The cost is a few numpy calls per level of the deepest tree,
     whatever the number of trees; the contributions are summed once, over the whole path."""
     n_cls, n_feat = len(model.classes), len(model.features)
     w = model.walk
@@ -219,7 +250,21 @@ def decide(model: CauseModel, x: FloatArray) -> Decision:
         np.bincount(w.cell[came], weights=steps, minlength=n_cls * n_feat), dtype=np.float64
     ).reshape(n_cls, n_feat)
     raw = np.bincount(model.tree_class, weights=w.value[idx], minlength=n_cls).astype(np.float64)
-    return Decision(calibrated(raw, model.temperature), raw, w.base.copy(), contrib)
+    p = calibrated(raw, model.temperature)
+    if model.shape is None or shape is None:
+        return Decision(p, raw, w.base.copy(), contrib)
+    log_shape = shape_log_probabilities(model.shape, shape)
+    p = blended(
+        np.log(np.maximum(p, 1e-300)), log_shape, model.shape_weight, model.blend_temperature
+    )
+    return Decision(p, raw, w.base.copy(), contrib, np.exp(log_shape))
+
+
+def blended(
+    log_trees: FloatArray, log_shape: FloatArray, weight: float, temperature: float
+) -> FloatArray:
+    """softmax(((1 − weight)·log_trees + weight·log_shape) / temperature), per row."""
+    return calibrated((1.0 - weight) * log_trees + weight * log_shape, temperature)
 
 
 def calibrated(raw: FloatArray, temperature: float) -> FloatArray:

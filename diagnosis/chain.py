@@ -18,7 +18,7 @@ import numpy as np
 from plantcheck.diagnosis.acf_decay import acf_decay_ratio
 from plantcheck.diagnosis.baseline import DEGRADED_RATIO, Baseline, variability
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
-from plantcheck.diagnosis.cause_model import CauseModel, decide, shipped_cause_model
+from plantcheck.diagnosis.cause_model import CauseModel, Decision, decide, shipped_cause_model
 from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
 from plantcheck.diagnosis.controller_change import (
     ControllerChangeParams,
@@ -59,6 +59,7 @@ from plantcheck.diagnosis.shape_tests import (
     relay_index,
     significant_half_cycles,
 )
+from plantcheck.diagnosis.signal_shape import ShapeInput, shape_input
 from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average, noise_sigma
 from plantcheck.diagnosis.step_response import (
     StepResponse,
@@ -420,6 +421,23 @@ def chain_evidence(
     diag = DiagnosisDraft(loop_type, "standard", int(pv.size), ts, "ok", 0.0, False)
     run = _run_chain(_Run(win, ts, loop_type, p, False, False, diag), gather=True)
     return diag.cause, (_evidence(run) if _judged(win) else None)
+
+
+def chain_shape_input(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray | None = None,
+    auto: BoolArray | None = None,
+    loop_type: str = "other",
+    params: ChainParams | None = None,
+) -> tuple[ShapeInput, bool]:
+    """The shape network's input of one window as a diagnosis reads it (the window checks'
+    cleaned signals), and whether the window holds evidence to weigh (``chain_evidence`` gives
+    None where it does not): what ``plantcheck model fit`` fits the network on."""
+    p = params or default_chain_params()
+    win = check_window(np.asarray(pv, dtype=np.float64), np.asarray(op, dtype=np.float64),
+                       sp, auto, p.window)  # fmt: skip
+    return shape_input(win.pv, win.op, win.sp, loop_type), _judged(win)
 
 
 def _read_events(run: _Run) -> bool:
@@ -1026,7 +1044,10 @@ def _weigh(run: _Run, model: CauseModel) -> None:
     it, and a note names the cause the model prefers when they differ."""
     diag, p = run.diag, run.p
     ev = _evidence(run)
-    d = decide(model, evidence_vector(ev))
+    shape = None
+    if model.shape is not None:
+        shape = shape_input(run.win.pv, run.win.op, run.win.sp, run.loop_type)
+    d = decide(model, evidence_vector(ev), shape)
     probs = d.probabilities.copy()
     if run.exclude_stiction and "stiction" in model.classes:
         probs[model.classes.index("stiction")] = 0.0
@@ -1038,12 +1059,7 @@ def _weigh(run: _Run, model: CauseModel) -> None:
         return
     k = best if learned else model.classes.index(rules)
     diag.probabilities = {c: round(float(v), 3) for c, v in zip(model.classes, probs, strict=True)}
-    order = np.argsort(-np.abs(d.contributions[k]))[:TOP_EVIDENCE]
-    diag.evidence = [
-        {"name": model.features[i], "value": _rounded(ev.get(model.features[i])),
-         "contribution": round(float(d.contributions[k, i]), 3)}
-        for i in order.tolist() if d.contributions[k, i] != 0.0
-    ]  # fmt: skip
+    diag.evidence = _moved_most(model, d, ev, k)
     diag.confidence = float(probs[k])
     if not learned:
         if best != k:
@@ -1062,6 +1078,37 @@ def _weigh(run: _Run, model: CauseModel) -> None:
     if cause == "stiction" and run.events is not None and "estimate" not in diag.stiction:
         _estimate_into(diag, run.events, run.win.pv, run.win.op, run.gain_sign)
     diag.actions = [_stiction_action(diag)]
+
+
+def _moved_most(
+    model: CauseModel, d: Decision, ev: dict[str, float | None], k: int
+) -> list[dict[str, object]]:
+    """The ``TOP_EVIDENCE`` inputs that moved class ``k`` most. With a shape network blended
+    in, each tree input's contribution is scaled into the blend's log-odds, (1 − w) / (T·T₂)
+    times its share of the raw score, beside the network's own, w / T₂ times its log-probability
+    of the class over their mean (its ``value``: its probability of the class)."""
+    names = list(model.features)
+    values = [_rounded(ev.get(n)) for n in names]
+    moves = d.contributions[k].copy()
+    if d.shape_probabilities is not None:
+        moves *= (1.0 - model.shape_weight) / (model.temperature * model.blend_temperature)
+        log_shape = np.log(np.maximum(d.shape_probabilities, 1e-300))
+        names.append(SHAPE_EVIDENCE)
+        values.append(_rounded(float(d.shape_probabilities[k])))
+        moves = np.append(
+            moves,
+            model.shape_weight / model.blend_temperature * (log_shape[k] - log_shape.mean()),
+        )
+    order = np.argsort(-np.abs(moves))[:TOP_EVIDENCE]
+    return [
+        {"name": names[i], "value": values[i], "contribution": round(float(moves[i]), 3)}
+        for i in order.tolist()
+        if moves[i] != 0.0
+    ]
+
+
+SHAPE_EVIDENCE = "signal_shape"
+"""The shape network's name among the evidence: its value is its probability of the cause."""
 
 
 def _against_baseline(run: _Run) -> None:

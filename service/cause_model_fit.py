@@ -21,7 +21,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,9 +29,19 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from plantcheck.diagnosis.cause_model import CauseModel, calibrated, decide
+from plantcheck.diagnosis.cause_model import CauseModel, blended, calibrated, decide
 from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
+from plantcheck.diagnosis.signal_shape import ShapeInput, shape_log_probabilities
+from plantcheck.service.shape_model_fit import (
+    EPOCHS,
+    SHAPE_VERSION,
+    CorpusShapes,
+    corpus_shapes,
+    fit_blend,
+    fit_shape_net,
+)
+from plantcheck.service.shape_model_fit import FIT_THREADS as SHAPE_THREADS
 from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, FAMILY_KEYS, draw_case
 
 FIT_SEED, CALIBRATION_SEED, CHECK_SEED = 101, 202, 303
@@ -314,6 +324,8 @@ class FitReport:
     class_f1: dict[str, float]
     ece: float
     rules_macro_f1: float
+    trees_macro_f1: float
+    """The trees' own figure, before the shape network is blended in."""
 
 
 def fit_model(
@@ -323,10 +335,12 @@ def fit_model(
     cache: Path | None = None,
     seeds: Sequence[int] = (FIT_SEED, CALIBRATION_SEED, CHECK_SEED),
     tree_seed: int = 0,
+    shape: bool = True,
 ) -> FitReport:
     """Fit on ``windows`` windows of the fit seed, calibrate and check on
     ``side_windows(windows)`` of the other two; the exported model and its check figures.
-    ``tree_seed``: LightGBM's seed for its row and column subsampling."""
+    ``tree_seed``: LightGBM's seed for its row and column subsampling; ``shape``: fit the
+    shape network and blend it in (``service.shape_model_fit``)."""
     say = progress or (lambda _m: None)
     fit_s, cal_s, chk_s = seeds
     small = side_windows(windows)
@@ -355,7 +369,16 @@ def fit_model(
         raise RuntimeError(f"exported trees disagree with LightGBM: {np.abs(ref - mine).max():g}")
     temperature = fit_temperature(raw_scores(model, cal.x), cal.y)
     model = export_trees(booster, temperature, meta)
-    p = calibrated(raw_scores(model, chk.x), temperature)
+    trees_f1, _ = macro_f1(chk.y, raw_scores(model, chk.x).argmax(axis=1), len(CLASSES))
+    if shape:
+        fit_shapes = corpus_shapes(fit_s, windows, jobs, say, cache)
+        cal_shapes = corpus_shapes(cal_s, small, jobs, say, cache)
+        net = fit_shape_net(fit_shapes, progress=say)
+        model = with_blend(replace(model, shape=net), cal, cal_shapes)
+        say(f"blend: shape network weight {model.shape_weight}, "
+            f"temperature {model.blend_temperature:.3f}")  # fmt: skip
+    chk_shapes = corpus_shapes(chk_s, small, jobs, say, cache) if shape else None
+    p = model_probabilities(model, chk, chk_shapes)
     pred = p.argmax(axis=1)
     mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
     rule_pred = np.array([CLASSES.index(r) if r in CLASSES else -1 for r in chk.rules])
@@ -368,6 +391,7 @@ def fit_model(
         dict(zip(CLASSES, f1s, strict=True)),
         expected_calibration_error(p, chk.y),
         rules_f1,
+        trees_f1,
     )
 
 
@@ -376,3 +400,55 @@ def save_model(model: CauseModel, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("wb") as fh:
         np.savez_compressed(fh, **model.to_arrays())  # type: ignore[arg-type]
+
+
+def with_blend(model: CauseModel, cal: CorpusEvidence, cal_shapes: CorpusShapes) -> CauseModel:
+    """``model`` (trees and shape network) with the network's weight in the blend and the
+    blend's temperature that the calibration windows (``cal``, ``cal_shapes``) give."""
+    log_trees = _log_trees(model, cal)
+    weight, temperature = fit_blend(log_trees, shape_log_probabilities_of(model, cal_shapes),
+                                    cal.y)  # fmt: skip
+    shape_meta = {"version": SHAPE_VERSION, "library": "torch", "epochs": EPOCHS,
+                  "threads": SHAPE_THREADS}  # fmt: skip
+    return replace(model, shape_weight=weight, blend_temperature=temperature,
+                   meta={**model.meta, "shape": shape_meta})  # fmt: skip
+
+
+def _log_trees(model: CauseModel, ev: CorpusEvidence) -> NDArray[np.float64]:
+    p = calibrated(raw_scores(model, ev.x), model.temperature)
+    return np.log(np.maximum(p, 1e-300))
+
+
+def model_probabilities(
+    model: CauseModel, ev: CorpusEvidence, shapes: CorpusShapes | None
+) -> NDArray[np.float64]:
+    """The model's class probabilities of ``ev``'s windows, as a diagnosis gives them: the
+    trees', blended with the shape network's reading of ``shapes`` where the model has one."""
+    log_trees = _log_trees(model, ev)
+    if model.shape is None:
+        return np.exp(log_trees)
+    if shapes is None:
+        raise ValueError("the model blends a shape network: give the windows' shapes")
+    log_shape = shape_log_probabilities_of(model, shapes)
+    if log_shape.shape[0] != ev.y.size:
+        raise RuntimeError("the shapes and the evidence judge other windows")
+    return blended(log_trees, log_shape, model.shape_weight, model.blend_temperature)
+
+
+def shape_log_probabilities_of(model: CauseModel, shapes: CorpusShapes) -> NDArray[np.float64]:
+    """The model's shape network's log-probabilities of the judged windows of ``shapes``
+    (the rows ``corpus_evidence`` keeps, in order)."""
+    assert model.shape is not None
+    net = model.shape
+    rows = np.flatnonzero(shapes.judged)
+    return np.array(
+        [
+            shape_log_probabilities(
+                net,
+                ShapeInput(
+                    shapes.channels[i].astype(np.float64), shapes.scalars[i].astype(np.float64)
+                ),
+            )
+            for i in rows.tolist()
+        ]
+    ).reshape(-1, len(model.classes))

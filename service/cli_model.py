@@ -51,6 +51,13 @@ def fit_cmd(
             "other seeds show how far one fit's readings are a draw).",
         ),
     ] = 0,
+    shape: Annotated[
+        bool,
+        typer.Option(
+            help="Fit the shape network (PyTorch) and blend it with the trees; --no-shape: "
+            "the trees alone."
+        ),
+    ] = True,
     as_json: Annotated[bool, typer.Option("--json", help="Print the figures as JSON.")] = False,
 ) -> None:
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
@@ -62,8 +69,11 @@ def fit_cmd(
     """
     try:
         import lightgbm  # noqa: F401
-    except ImportError:
-        raise fail("model fit needs LightGBM: pip install -e '.[fit]'") from None
+
+        if shape:
+            import torch  # noqa: F401
+    except ImportError as exc:
+        raise fail(f"model fit needs {exc.name}: pip install -e '.[fit]'") from None
     # imported here: the diagnosis package costs the other commands' start-up its numpy/scipy
     from plantcheck.diagnosis.cause_model import SHIPPED_MODEL
     from plantcheck.service.cause_model_fit import fit_model, save_model
@@ -78,7 +88,12 @@ def fit_cmd(
 
     t0 = time.monotonic()
     rep = fit_model(
-        windows, jobs, lambda m: print(m, file=sys.stderr, flush=True), cache, tree_seed=tree_seed
+        windows,
+        jobs,
+        lambda m: print(m, file=sys.stderr, flush=True),
+        cache,
+        tree_seed=tree_seed,
+        shape=shape,
     )
     save_model(rep.model, out)
     figures = {
@@ -86,6 +101,8 @@ def fit_cmd(
         "windows": rep.windows,
         "temperature": round(rep.temperature, 3),
         "check_macro_f1": round(rep.macro_f1, 3),
+        "check_trees_macro_f1": round(rep.trees_macro_f1, 3),
+        "shape_weight": rep.model.shape_weight,
         "check_class_f1": {k: round(v, 3) for k, v in rep.class_f1.items()},
         "check_ece": round(rep.ece, 3),
         "rules_macro_f1": round(rep.rules_macro_f1, 3),
@@ -95,7 +112,9 @@ def fit_cmd(
         typer.echo(json.dumps(figures))
         return
     typer.echo(
-        f"wrote {out}: check macro-F1 {figures['check_macro_f1']} (rules "
+        f"wrote {out}: check macro-F1 {figures['check_macro_f1']} (trees alone "
+        f"{figures['check_trees_macro_f1']}, shape network's weight "
+        f"{figures['shape_weight']}; rules "
         f"{figures['rules_macro_f1']}), calibration error {figures['check_ece']}, "
         f"temperature {figures['temperature']}, {figures['seconds']} s"
     )

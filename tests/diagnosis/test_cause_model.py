@@ -10,7 +10,7 @@ import pytest
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.diagnosis.cause_model import decide, shipped_cause_model
-from plantcheck.diagnosis.chain import chain_evidence
+from plantcheck.diagnosis.chain import SHAPE_EVIDENCE, chain_evidence, chain_shape_input
 from plantcheck.diagnosis.evidence import FEATURE_NAMES, FEATURES, evidence_vector
 from plantcheck.simulator.cases import simc_pi
 from plantcheck.simulator.corpus import CLASSES, FAMILIES, draw_case
@@ -89,7 +89,8 @@ def test_a_diagnosis_weighs_the_evidence_the_corpus_gives_the_fit() -> None:
     Until evidence version 8 the corpus skipped the evidence the rules' path did not need (the
     stiction tests wherever a period was found, the oscillation test on windows the window
     checks decided), which a diagnosis gathered: 124 of 299 calibration windows were weighed on
-    inputs the fit never saw present for such windows."""
+    inputs the fit never saw present for such windows. The shape network reads the window the
+    window checks give (``chain_shape_input``), as the fit does."""
     model = shipped_cause_model()
     assert model is not None
     weighed = 0
@@ -103,7 +104,9 @@ def test_a_diagnosis_weighs_the_evidence_the_corpus_gives_the_fit() -> None:
                      params=ChainParams(decide_by="learned"))  # fmt: skip
         if d.cause not in CLASSES:  # too short to judge or far from its baseline: re-read
             continue
-        probs = decide(model, evidence_vector(ev)).probabilities
+        shape, judged = chain_shape_input(rec.pv, rec.op, rec.sp, loop_type=case.loop_type)
+        assert judged
+        probs = decide(model, evidence_vector(ev), shape).probabilities
         assert d.confidence == float(probs.max()), (i, case.family)
         weighed += 1
     assert weighed >= 30
@@ -120,7 +123,8 @@ def test_probabilities_and_evidence_in_the_json() -> None:
         assert set(probs) == set(CLASSES) and abs(sum(probs.values()) - 1.0) < 0.01
         # both rounded from the same probability: to 2 and to 3 decimals
         assert abs(out["confidence"] - probs["stiction"]) <= 0.0051
-        assert out["evidence"] and all(e["name"] in FEATURES for e in out["evidence"])
+        names = {e["name"] for e in out["evidence"]}
+        assert names and names <= {*FEATURES, SHAPE_EVIDENCE}
         sizes = [abs(e["contribution"]) for e in out["evidence"]]
         assert sizes == sorted(sizes, reverse=True)
 

@@ -154,7 +154,8 @@ def test_a_long_record_is_read_with_memory_bounded_by_max_rows(tmp_path: Path) -
 @pytest.mark.slow(minutes=0.5)  # 20-30 s: started early, not last
 def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_path: Path) -> None:
     """Issue 46: one command rebuilds the model file from the simulated corpus (a small one
-    here); the exported trees are checked against LightGBM's own scores inside the command."""
+    here): the trees, checked against LightGBM's own scores inside the command, and the shape
+    network."""
     from plantcheck.diagnosis.cause_model import load_cause_model
     from plantcheck.diagnosis.evidence import FEATURE_NAMES
 
@@ -168,6 +169,10 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     model = load_cause_model(out)
     assert model.features == FEATURE_NAMES and model.meta["library"] == "lightgbm"
     assert model.meta["seeds"]["trees"] == 3 and model.meta["params"]["num_threads"] == 2
+    # the shape network, blended in by the weight the calibration windows gave
+    assert model.shape is not None and model.meta["shape"]["library"] == "torch"
+    assert model.shape_weight == figures["shape_weight"] and 0.0 <= model.shape_weight <= 1.0
+    assert "shape network: epoch 15/15" in r.stderr
 
 
 def test_model_fit_refuses_an_unwritable_output_before_it_draws(

@@ -1,0 +1,166 @@
+"""The window's shape read by a small convolutional network (issue 46): the control error, OP
+and the set point resampled to ``SHAPE_SAMPLES`` points, each in units of its own spread, and
+a few scale figures beside them. The chain's tests read what their authors knew to look for;
+the network reads whatever the simulated corpus shows apart, and the learned decision weighs
+both (``cause_model.decide``).
+
+The network is four strided 1-D convolutions with ReLU (batch normalisation folded into their
+weights at export), the mean and the maximum of the last one over time, and two dense layers
+(the usual 1-D CNN for time-series classification: Wang, Yan & Oates 2017). It is fitted with
+PyTorch by ``plantcheck model fit`` (``service.shape_model_fit``) and evaluated here in numpy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from plantcheck.diagnosis.signal_tools import noise_sigma
+from plantcheck.diagnosis.stiction_vote import is_integrating
+
+FloatArray = NDArray[np.float64]
+
+SHAPE_SAMPLES = 512
+"""Points each channel is resampled to: block means of a longer window, a linear
+interpolation of a shorter one."""
+
+SHAPE_CLIP = 8.0
+"""Channel values are clipped to ± this many of their spread (a step of a nearly still loop
+would otherwise dwarf the rest)."""
+
+SCALARS: tuple[str, ...] = (
+    "log_samples",
+    "log_error_sd_noise",
+    "log_op_sd",
+    "log_op_sd_noise",
+    "error_offset",
+    "integrating",
+    "op_at_max",
+    "op_at_min",
+)
+"""The scale figures the network reads beside the channels (the channels have none)."""
+
+
+@dataclass(frozen=True)
+class ShapeInput:
+    """One window prepared for the network: channels (3 × ``SHAPE_SAMPLES``: error, OP, set
+    point) and ``SCALARS``."""
+
+    channels: FloatArray
+    scalars: FloatArray
+
+
+def _resampled(x: FloatArray, points: int) -> FloatArray:
+    n = x.size
+    if n >= points:
+        edges = np.linspace(0, n, points + 1).astype(np.int64)
+        return np.asarray(np.add.reduceat(x, edges[:-1]) / np.diff(edges), dtype=np.float64)
+    return np.interp(np.linspace(0, n - 1, points), np.arange(n), x)
+
+
+def shape_input(pv: FloatArray, op: FloatArray, sp: FloatArray, loop_type: str) -> ShapeInput:
+    """The network's input for one window (PV and SP in engineering units, OP in %, no NaN).
+
+    The channels are stored as float16 in the fit's cache, so they pass through float16 here
+    too: the network reads the same numbers in the fit and in a diagnosis."""
+    e = sp - pv
+    se = float(np.std(e)) + 1e-12
+    so = float(np.std(op)) + 1e-12
+    ne = max(noise_sigma(e), 1e-9)
+    no = max(noise_sigma(op), 1e-9)
+    chans = np.stack(
+        [
+            _resampled(e, SHAPE_SAMPLES) / se,
+            _resampled(op - op.mean(), SHAPE_SAMPLES) / so,
+            _resampled(sp - sp.mean(), SHAPE_SAMPLES) / se,
+        ]
+    )
+    chans = np.clip(chans, -SHAPE_CLIP, SHAPE_CLIP).astype(np.float16).astype(np.float64)
+    scalars = np.array(
+        [
+            np.log10(pv.size),
+            np.log10(se / ne),
+            np.log10(so),
+            np.log10(so / no),
+            float(np.mean(e)) / se,
+            1.0 if is_integrating(loop_type) else 0.0,
+            float(np.mean(np.abs(op - op.max()) < 1e-9)),
+            float(np.mean(np.abs(op - op.min()) < 1e-9)),
+        ]
+    )
+    # float32, as the fit's cache keeps them
+    return ShapeInput(chans, np.nan_to_num(scalars.astype(np.float32).astype(np.float64)))
+
+
+@dataclass(frozen=True, eq=False)
+class ShapeNet:
+    """The network's weights: ``conv_w[i]`` (out × in × kernel, stride 2, zero padding of
+    half the kernel) and ``conv_b[i]``, batch normalisation folded in; the dense layers
+    ``dense_w``/``dense_b``; the scalars' mean and spread over the fit windows."""
+
+    conv_w: tuple[FloatArray, ...]
+    conv_b: tuple[FloatArray, ...]
+    dense_w: tuple[FloatArray, ...]
+    dense_b: tuple[FloatArray, ...]
+    scalar_mean: FloatArray
+    scalar_sd: FloatArray
+
+    def to_arrays(self, prefix: str) -> dict[str, FloatArray]:
+        """The arrays a model file keeps, named ``prefix`` + role + index."""
+        out: dict[str, FloatArray] = {}
+        for role, arrays in (("conv_w", self.conv_w), ("conv_b", self.conv_b),
+                             ("dense_w", self.dense_w), ("dense_b", self.dense_b)):  # fmt: skip
+            out.update({f"{prefix}{role}{i}": a for i, a in enumerate(arrays)})
+        out[f"{prefix}scalar_mean"] = self.scalar_mean
+        out[f"{prefix}scalar_sd"] = self.scalar_sd
+        return out
+
+    @classmethod
+    def from_arrays(cls, z: dict[str, FloatArray], prefix: str) -> ShapeNet:
+        """The network ``to_arrays`` wrote under ``prefix``."""
+
+        def seq(role: str) -> tuple[FloatArray, ...]:
+            out: list[FloatArray] = []
+            while f"{prefix}{role}{len(out)}" in z:
+                out.append(np.asarray(z[f"{prefix}{role}{len(out)}"], dtype=np.float64))
+            return tuple(out)
+
+        return cls(seq("conv_w"), seq("conv_b"), seq("dense_w"), seq("dense_b"),
+                   np.asarray(z[f"{prefix}scalar_mean"], dtype=np.float64),
+                   np.asarray(z[f"{prefix}scalar_sd"], dtype=np.float64))  # fmt: skip
+
+
+def shape_log_probabilities(net: ShapeNet, x: ShapeInput) -> FloatArray:
+    """The network's log class probabilities for one window."""
+    h = x.channels
+    for w, b in zip(net.conv_w, net.conv_b, strict=True):
+        out_ch, in_ch, k = w.shape
+        # each output point's k inputs side by side, (in × k, points): one matrix product per
+        # layer; the zero padding is the extra column every index outside the input reads
+        padded = np.concatenate((h, np.zeros((in_ch, 1))), axis=1)
+        cols = padded[:, _taps(h.shape[1], k)].reshape(in_ch * k, -1)
+        h = np.maximum(w.reshape(out_ch, in_ch * k) @ cols + b[:, None], 0.0)
+    z = np.concatenate(
+        [h.mean(axis=1), h.max(axis=1), (x.scalars - net.scalar_mean) / net.scalar_sd]
+    )
+    for i, (w, b) in enumerate(zip(net.dense_w, net.dense_b, strict=True)):
+        z = w @ z + b
+        if i < len(net.dense_w) - 1:
+            z = np.maximum(z, 0.0)
+    z = z - z.max()
+    out: FloatArray = z - np.log(np.exp(z).sum())
+    return out
+
+
+@lru_cache(maxsize=16)
+def _taps(length: int, k: int) -> NDArray[np.int64]:
+    """(k, points): the input index each tap of a stride-2 convolution with zero padding of
+    k // 2 reads at each output point; ``length`` (the zero column) outside the input."""
+    points = (length + 2 * (k // 2) - k) // 2 + 1
+    at = 2 * np.arange(points)[None, :] + np.arange(k)[:, None] - k // 2
+    at[(at < 0) | (at >= length)] = length
+    at.flags.writeable = False
+    return at

@@ -1,0 +1,205 @@
+"""The shape network of the learned decision (``diagnosis.signal_shape``), fitted with PyTorch
+on the simulated corpus, and its blend with the trees (issue 46).
+
+PyTorch is imported here only (the ``fit`` extra). The fit is made repeatable: a fixed seed,
+``FIT_THREADS`` threads and deterministic algorithms, so the same corpus gives the same
+weights.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
+
+from plantcheck.diagnosis.cause_model import blended
+from plantcheck.diagnosis.chain import chain_shape_input
+from plantcheck.diagnosis.signal_shape import SCALARS, SHAPE_SAMPLES, ShapeNet
+from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, draw_case
+
+SHAPE_VERSION = 1
+"""Raised whenever ``signal_shape.shape_input`` changes: cached shapes are then redrawn."""
+
+CHANNELS = (3, 16, 32, 48, 64)
+"""The convolutions' channels, input first."""
+KERNELS = (9, 7, 5, 5)
+"""Their kernel lengths (stride 2 each: 512 points become 32)."""
+HIDDEN = 64
+"""The dense layer's width."""
+EPOCHS = 15
+BATCH = 128
+LEARNING_RATE = 2e-3
+MAX_LEARNING_RATE = 3e-3
+"""AdamW's (Loshchilov & Hutter 2019) rate as built; the one-cycle schedule (Smith 2018) takes
+over, from ``MAX_LEARNING_RATE`` / 25 up to it and down again."""
+WEIGHT_DECAY = 1e-4
+FIT_THREADS = 2
+"""PyTorch's threads, fixed whatever the machine, so that its sums run in the same order."""
+BLEND_WEIGHTS = tuple(round(0.05 * k, 2) for k in range(21))
+"""The network's weights in the blend tried on the calibration seed."""
+
+
+@dataclass(frozen=True)
+class CorpusShapes:
+    """The shape inputs of a corpus' windows 0..n-1 (every window, judged or not), their
+    class, and whether the chain judges the window (the rows ``corpus_evidence`` keeps)."""
+
+    channels: NDArray[np.float16]
+    scalars: NDArray[np.float32]
+    y: NDArray[np.int64]
+    judged: NDArray[np.bool_]
+
+
+def _one(args: tuple[int, int]) -> tuple[int, NDArray[np.float64], NDArray[np.float64], bool]:
+    seed, index = args
+    case, rec = draw_case(seed, index)
+    x, judged = chain_shape_input(rec.pv, rec.op, rec.sp, loop_type=case.loop_type)
+    return CLASSES.index(case.cause), x.channels, x.scalars, judged
+
+
+def corpus_shapes(
+    seed: int,
+    n: int,
+    jobs: int | None = None,
+    progress: Callable[[str], None] | None = None,
+    cache: Path | None = None,
+) -> CorpusShapes:
+    """The shape inputs of windows 0..n-1 of corpus ``seed`` on ``jobs`` processes, kept in
+    ``cache`` (a folder) when given: about 90 windows/s on 2 cores."""
+    name = f"shapes-v{CORPUS_VERSION}.{SHAPE_VERSION}-{seed}-{n}.npz"
+    path = cache / name if cache else None
+    if path is not None and path.is_file():
+        with np.load(path, allow_pickle=False) as z:
+            return CorpusShapes(z["channels"], z["scalars"], z["y"], z["judged"])
+    chans = np.zeros((n, 3, SHAPE_SAMPLES), dtype=np.float16)
+    scalars = np.zeros((n, len(SCALARS)), dtype=np.float32)
+    y = np.zeros(n, dtype=np.int64)
+    judged = np.zeros(n, dtype=bool)
+    t0 = time.monotonic()
+    ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
+    with ctx.Pool(jobs or os.cpu_count() or 1) as pool:
+        work = pool.imap(_one, [(seed, i) for i in range(n)], chunksize=32)
+        for i, (cls, c, s, ok) in enumerate(work):
+            # the channels went through float16 in shape_input: stored exactly
+            chans[i], scalars[i], y[i], judged[i] = c, s, cls, ok
+            done = i + 1
+            if progress and (done % 2000 == 0 or done == n):
+                rate = done / max(time.monotonic() - t0, 1e-9)
+                progress(f"corpus seed {seed} shapes: {done}/{n} windows, {rate:.0f}/s, "
+                         f"about {(n - done) / rate:.0f} s left")  # fmt: skip
+    out = CorpusShapes(chans, scalars, y, judged)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, channels=chans, scalars=scalars, y=y, judged=judged)
+    return out
+
+
+def fit_shape_net(
+    shapes: CorpusShapes, seed: int = 0, progress: Callable[[str], None] | None = None
+) -> ShapeNet:
+    """The network fitted on every window of ``shapes`` (cross-entropy, AdamW, a one-cycle
+    schedule over ``EPOCHS`` epochs), batch normalisation folded into the convolutions."""
+    import torch
+    from torch import nn
+
+    say = progress or (lambda _m: None)
+    torch.set_num_threads(FIT_THREADS)
+    torch.use_deterministic_algorithms(True)
+    torch.manual_seed(seed)
+    x = torch.tensor(shapes.channels.astype(np.float32))
+    s = torch.nan_to_num(torch.tensor(shapes.scalars))
+    y = torch.tensor(shapes.y)
+    mu, sd = s.mean(0), s.std(0) + 1e-6
+    net = _Net(nn, mu, sd)
+    opt = torch.optim.AdamW(net.parameters(), LEARNING_RATE, weight_decay=WEIGHT_DECAY)
+    batches = max(1, y.numel() // BATCH)
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, MAX_LEARNING_RATE,
+                                                total_steps=EPOCHS * batches)  # fmt: skip
+    t0 = time.monotonic()
+    for epoch in range(EPOCHS):
+        order = torch.randperm(y.numel())
+        for b in range(batches):
+            idx = order[b * BATCH : (b + 1) * BATCH]
+            loss = nn.functional.cross_entropy(net(x[idx], s[idx]), y[idx])
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+        say(f"shape network: epoch {epoch + 1}/{EPOCHS}, loss {float(loss):.3f}, "
+            f"{time.monotonic() - t0:.0f} s")  # fmt: skip
+    return _exported(net, mu, sd)
+
+
+def _Net(nn: Any, mu: Any, sd: Any) -> Any:
+    """The network of ``signal_shape`` as a torch module (built here: torch is imported
+    only when fitting)."""
+    import torch
+
+    class Net(nn.Module):  # type: ignore[misc]
+        def __init__(self) -> None:
+            super().__init__()
+            self.convs = nn.ModuleList(
+                nn.Conv1d(CHANNELS[i], CHANNELS[i + 1], k, stride=2, padding=k // 2)
+                for i, k in enumerate(KERNELS)
+            )
+            self.bns = nn.ModuleList(nn.BatchNorm1d(c) for c in CHANNELS[1:])
+            self.fc1 = nn.Linear(2 * CHANNELS[-1] + len(SCALARS), HIDDEN)
+            self.fc2 = nn.Linear(HIDDEN, len(CLASSES))
+
+        def forward(self, x: Any, sc: Any) -> Any:
+            for conv, bn in zip(self.convs, self.bns, strict=True):
+                x = torch.relu(bn(conv(x)))
+            h = torch.cat([x.mean(2), x.amax(2), (sc - mu) / sd], 1)
+            return self.fc2(torch.relu(self.fc1(h)))
+
+    return Net()
+
+
+def _exported(net: Any, mu: Any, sd: Any) -> ShapeNet:
+    """The weights as float64 arrays, each batch normalisation folded into its convolution."""
+    conv_w, conv_b = [], []
+    for conv, bn in zip(net.convs, net.bns, strict=True):
+        scale = (bn.weight.double() / (bn.running_var.double() + bn.eps).sqrt()).detach().numpy()
+        w = conv.weight.double().detach().numpy()
+        b = conv.bias.double().detach().numpy()
+        mean = bn.running_mean.double().detach().numpy()
+        conv_w.append(w * scale[:, None, None])
+        conv_b.append((b - mean) * scale + bn.bias.double().detach().numpy())
+    dense = (net.fc1, net.fc2)
+    return ShapeNet(
+        tuple(conv_w),
+        tuple(conv_b),
+        tuple(d.weight.double().detach().numpy() for d in dense),
+        tuple(d.bias.double().detach().numpy() for d in dense),
+        mu.double().numpy(),
+        sd.double().numpy(),
+    )
+
+
+def fit_blend(
+    log_trees: NDArray[np.float64], log_shape: NDArray[np.float64], y: NDArray[np.int64]
+) -> tuple[float, float]:
+    """The network's weight (``BLEND_WEIGHTS``) and the blend's temperature that minimise the
+    negative log-likelihood of ``y`` on the calibration windows."""
+    best = (math.inf, 0.0, 1.0)
+    rows = np.arange(y.size)
+    for w in BLEND_WEIGHTS:
+
+        def nll(log_t: float, w: float = w) -> float:
+            p = blended(log_trees, log_shape, w, math.exp(log_t))
+            return float(-np.mean(np.log(np.maximum(p[rows, y], 1e-300))))
+
+        res = minimize_scalar(nll, bounds=(math.log(0.2), math.log(5.0)), method="bounded")
+        if res.fun < best[0]:
+            best = (float(res.fun), w, float(math.exp(res.x)))
+    return best[1], best[2]

@@ -1,0 +1,120 @@
+"""The shape network's input and its numpy evaluation (issue 46): what the fit trains on is
+what a diagnosis reads, and the numpy forward pass reads as PyTorch's does."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plantcheck.diagnosis.cause_model import (
+    blended,
+    decide,
+    load_cause_model,
+    shipped_cause_model,
+)
+from plantcheck.diagnosis.evidence import FEATURE_NAMES
+from plantcheck.diagnosis.signal_shape import (
+    SCALARS,
+    SHAPE_CLIP,
+    SHAPE_SAMPLES,
+    ShapeInput,
+    ShapeNet,
+    shape_input,
+    shape_log_probabilities,
+)
+from plantcheck.simulator.corpus import CLASSES
+
+
+def _random_net(seed: int = 0) -> ShapeNet:
+    rng = np.random.default_rng(seed)
+    chans, kernels = (3, 4, 5, 6, 7), (9, 7, 5, 5)
+    conv_w = tuple(rng.normal(0, 0.3, (chans[i + 1], chans[i], k)) for i, k in enumerate(kernels))
+    conv_b = tuple(rng.normal(0, 0.1, c) for c in chans[1:])
+    dense_w = (rng.normal(0, 0.3, (8, 2 * chans[-1] + len(SCALARS))), rng.normal(0, 0.3, (6, 8)))
+    dense_b = (rng.normal(0, 0.1, 8), rng.normal(0, 0.1, 6))
+    return ShapeNet(conv_w, conv_b, dense_w, dense_b, np.zeros(len(SCALARS)),
+                    np.ones(len(SCALARS)))  # fmt: skip
+
+
+def test_a_window_of_any_length_becomes_three_bounded_channels() -> None:
+    rng = np.random.default_rng(2)
+    for n in (150, 3_600, 20_000):
+        pv = 50.0 + np.cumsum(rng.normal(0, 0.1, n))
+        op = 40.0 + rng.normal(0, 1.0, n)
+        sp = np.full(n, 50.0)
+        sp[n // 2 :] = 52.0
+        x = shape_input(pv, op, sp, "level")
+        assert x.channels.shape == (3, SHAPE_SAMPLES) and x.scalars.shape == (len(SCALARS),)
+        assert np.all(np.abs(x.channels) <= SHAPE_CLIP) and np.all(np.isfinite(x.scalars))
+        # kept as float16 in the fit's cache: read the same numbers here
+        np.testing.assert_array_equal(x.channels, x.channels.astype(np.float16))
+        assert x.scalars[SCALARS.index("integrating")] == 1.0
+        assert x.scalars[SCALARS.index("log_samples")] == pytest.approx(np.log10(n), rel=1e-6)
+
+
+def test_the_blend_is_a_softmax_of_weighted_log_probabilities() -> None:
+    model = shipped_cause_model()
+    assert model is not None
+    net = _random_net()
+    rng = np.random.default_rng(3)
+    x = ShapeInput(rng.normal(size=(3, SHAPE_SAMPLES)), rng.normal(size=len(SCALARS)))
+    log_shape = shape_log_probabilities(net, x)
+    assert abs(float(np.exp(log_shape).sum()) - 1.0) < 1e-12
+    both = replace(model, shape=net, shape_weight=0.3, blend_temperature=0.9)
+    ev = rng.normal(size=len(FEATURE_NAMES))
+    trees = decide(model, ev)
+    d = decide(both, ev, x)
+    want = blended(np.log(trees.probabilities), log_shape, 0.3, 0.9)
+    np.testing.assert_allclose(d.probabilities, want, rtol=1e-12)
+    assert d.shape_probabilities is not None
+    np.testing.assert_allclose(d.raw, trees.raw)  # the trees' own reading is kept
+    # without the window's shape the trees decide alone
+    np.testing.assert_array_equal(decide(both, ev).probabilities, trees.probabilities)
+
+
+def test_a_model_file_keeps_its_shape_network(tmp_path: Path) -> None:
+    from plantcheck.service.cause_model_fit import save_model
+
+    model = shipped_cause_model()
+    assert model is not None
+    net = _random_net(4)
+    path = tmp_path / "m.npz"
+    save_model(replace(model, shape=net, shape_weight=0.25, blend_temperature=1.1), path)
+    back = load_cause_model(path)
+    assert back.shape is not None and back.shape_weight == 0.25 and back.blend_temperature == 1.1
+    for a, b in zip(back.shape.conv_w + back.shape.dense_w, net.conv_w + net.dense_w, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert back.classes == CLASSES
+
+
+def test_the_numpy_network_reads_as_pytorch_does() -> None:
+    """The fit exports the trained module with its batch normalisation folded in; numpy must
+    then give PyTorch's probabilities."""
+    torch = pytest.importorskip("torch", reason="PyTorch (the fit extra) is not installed")
+    from plantcheck.service.shape_model_fit import _exported, _Net
+
+    torch.manual_seed(5)
+    mu, sd = torch.randn(len(SCALARS)), torch.rand(len(SCALARS)) + 0.5
+    net = _Net(torch.nn, mu, sd)
+    # a few training steps move the batch statistics off their start
+    opt = torch.optim.SGD(net.parameters(), 0.01)
+    for _ in range(3):
+        x = torch.randn(16, 3, SHAPE_SAMPLES)
+        loss = net(x, torch.randn(16, len(SCALARS))).square().mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    net.eval()
+    exported = _exported(net, mu, sd)
+    x = torch.randn(4, 3, SHAPE_SAMPLES)
+    sc = torch.randn(4, len(SCALARS))
+    with torch.no_grad():
+        want = torch.log_softmax(net(x, sc), 1).double().numpy()
+    for i in range(4):
+        got = shape_log_probabilities(
+            exported, ShapeInput(x[i].double().numpy(), sc[i].double().numpy())
+        )
+        np.testing.assert_allclose(got, want[i], atol=1e-5)
