@@ -37,7 +37,9 @@ KERNELS = (9, 7, 5, 5)
 HIDDEN = 64
 """The dense layer's width."""
 EPOCHS = 15
+"""Passes over the fit windows."""
 BATCH = 128
+"""Windows per gradient step."""
 LEARNING_RATE = 2e-3
 MAX_LEARNING_RATE = 3e-3
 """AdamW's (Loshchilov & Hutter 2019) rate as built; the one-cycle schedule (Smith 2018) takes
@@ -120,7 +122,7 @@ def fit_shape_net(
     s = torch.nan_to_num(torch.tensor(shapes.scalars))
     y = torch.tensor(shapes.y)
     mu, sd = s.mean(0), s.std(0) + 1e-6
-    net = _Net(nn, mu, sd)
+    net = shape_module(nn, mu, sd)
     opt = torch.optim.AdamW(net.parameters(), LEARNING_RATE, weight_decay=WEIGHT_DECAY)
     batches = max(1, y.numel() // BATCH)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, MAX_LEARNING_RATE,
@@ -135,12 +137,12 @@ def fit_shape_net(
             loss.backward()
             opt.step()
             sched.step()
-        say(f"shape network: epoch {epoch + 1}/{EPOCHS}, loss {float(loss):.3f}, "
+        say(f"shape network: epoch {epoch + 1}/{EPOCHS}, last batch's loss {loss.item():.3f}, "
             f"{time.monotonic() - t0:.0f} s")  # fmt: skip
-    return _exported(net, mu, sd)
+    return export_shape_net(net, mu, sd)
 
 
-def _Net(nn: Any, mu: Any, sd: Any) -> Any:
+def shape_module(nn: Any, mu: Any, sd: Any) -> Any:
     """The network of ``signal_shape`` as a torch module (built here: torch is imported
     only when fitting)."""
     import torch
@@ -165,7 +167,7 @@ def _Net(nn: Any, mu: Any, sd: Any) -> Any:
     return Net()
 
 
-def _exported(net: Any, mu: Any, sd: Any) -> ShapeNet:
+def export_shape_net(net: Any, mu: Any, sd: Any) -> ShapeNet:
     """The weights as float64 arrays, each batch normalisation folded into its convolution."""
     conv_w, conv_b = [], []
     for conv, bn in zip(net.convs, net.bns, strict=True):

@@ -94,11 +94,11 @@ def test_the_numpy_network_reads_as_pytorch_does() -> None:
     """The fit exports the trained module with its batch normalisation folded in; numpy must
     then give PyTorch's probabilities."""
     torch = pytest.importorskip("torch", reason="PyTorch (the fit extra) is not installed")
-    from plantcheck.service.shape_model_fit import _exported, _Net
+    from plantcheck.service.shape_model_fit import export_shape_net, shape_module
 
     torch.manual_seed(5)
     mu, sd = torch.randn(len(SCALARS)), torch.rand(len(SCALARS)) + 0.5
-    net = _Net(torch.nn, mu, sd)
+    net = shape_module(torch.nn, mu, sd)
     # a few training steps move the batch statistics off their start
     opt = torch.optim.SGD(net.parameters(), 0.01)
     for _ in range(3):
@@ -108,7 +108,7 @@ def test_the_numpy_network_reads_as_pytorch_does() -> None:
         loss.backward()
         opt.step()
     net.eval()
-    exported = _exported(net, mu, sd)
+    exported = export_shape_net(net, mu, sd)
     x = torch.randn(4, 3, SHAPE_SAMPLES)
     sc = torch.randn(4, len(SCALARS))
     with torch.no_grad():
@@ -118,3 +118,23 @@ def test_the_numpy_network_reads_as_pytorch_does() -> None:
             exported, ShapeInput(x[i].double().numpy(), sc[i].double().numpy())
         )
         np.testing.assert_allclose(got, want[i], atol=1e-5)
+
+
+def test_the_network_fit_is_repeatable() -> None:
+    """Seeded, on fixed threads, deterministic: the same windows give the same weights, so
+    ``plantcheck model fit`` rebuilds the shipped file byte for byte."""
+    pytest.importorskip("torch", reason="PyTorch (the fit extra) is not installed")
+    from plantcheck.service.shape_model_fit import CorpusShapes, fit_shape_net
+
+    rng = np.random.default_rng(6)
+    n = 300
+    shapes = CorpusShapes(
+        rng.normal(size=(n, 3, SHAPE_SAMPLES)).astype(np.float16),
+        rng.normal(size=(n, len(SCALARS))).astype(np.float32),
+        rng.integers(0, len(CLASSES), n),
+        np.ones(n, dtype=bool),
+    )
+    a, b = fit_shape_net(shapes), fit_shape_net(shapes)
+    for x, y in zip(a.conv_w + a.dense_w + a.conv_b, b.conv_w + b.dense_w + b.conv_b, strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert not np.array_equal(a.dense_w[1], fit_shape_net(shapes, seed=1).dense_w[1])
