@@ -142,13 +142,18 @@ class CauseModel:
     """w: the network's weight in the blend of log-probabilities."""
     blend_temperature: float = 1.0
     """The blend's own softmax temperature."""
+    shape_base: tuple[float, ...] = ()
+    """The network's mean log-probability of each class over the calibration windows: what
+    it gives an average window, against which its reading of one is a move (as the trees'
+    contributions are moves from their base values)."""
 
     def to_arrays(self) -> dict[str, NDArray[np.generic]]:
         """The arrays ``np.savez`` writes (the metadata as UTF-8 JSON bytes)."""
         head = {"classes": self.classes, "features": self.features, "depth": self.depth,
                 "temperature": self.temperature, "meta": self.meta,
                 "shape_weight": self.shape_weight,
-                "blend_temperature": self.blend_temperature}  # fmt: skip
+                "blend_temperature": self.blend_temperature,
+                "shape_base": list(self.shape_base)}  # fmt: skip
         shape = {} if self.shape is None else self.shape.to_arrays(SHAPE_PREFIX)
         return {
             **shape,
@@ -206,6 +211,7 @@ def load_cause_model(path: Path) -> CauseModel:
             shape=ShapeNet.from_arrays(dict(z), SHAPE_PREFIX) if _has_shape(z) else None,
             shape_weight=float(head.get("shape_weight", 0.0)),
             blend_temperature=float(head.get("blend_temperature", 1.0)),
+            shape_base=tuple(float(v) for v in head.get("shape_base", ())),
         )
 
 

@@ -1085,19 +1085,25 @@ def _moved_most(
 ) -> list[dict[str, object]]:
     """The ``TOP_EVIDENCE`` inputs that moved class ``k`` most. With a shape network blended
     in, each tree input's contribution is scaled into the blend's log-odds, (1 − w) / (T·T₂)
-    times its share of the raw score, beside the network's own, w / T₂ times its log-probability
-    of the class over their mean (its ``value``: its probability of the class)."""
+    times its share of the raw score, beside the network's own: w / T₂ times its log-probability
+    of the class less what it gives an average window (``shape_base``; its ``value``: its
+    probability of the class)."""
     names = list(model.features)
     values = [_rounded(ev.get(n)) for n in names]
     moves = d.contributions[k].copy()
     if d.shape_probabilities is not None:
         moves *= (1.0 - model.shape_weight) / (model.temperature * model.blend_temperature)
         log_shape = np.log(np.maximum(d.shape_probabilities, 1e-300))
+        base = (
+            np.asarray(model.shape_base)
+            if model.shape_base
+            else np.full(log_shape.size, log_shape.mean())
+        )
         names.append(SHAPE_EVIDENCE)
         values.append(_rounded(float(d.shape_probabilities[k])))
         moves = np.append(
             moves,
-            model.shape_weight / model.blend_temperature * (log_shape[k] - log_shape.mean()),
+            model.shape_weight / model.blend_temperature * (log_shape[k] - base[k]),
         )
     order = np.argsort(-np.abs(moves))[:TOP_EVIDENCE]
     return [

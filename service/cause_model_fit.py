@@ -406,11 +406,12 @@ def with_blend(model: CauseModel, cal: CorpusEvidence, cal_shapes: CorpusShapes)
     """``model`` (trees and shape network) with the network's weight in the blend and the
     blend's temperature that the calibration windows (``cal``, ``cal_shapes``) give."""
     log_trees = _log_trees(model, cal)
-    weight, temperature = fit_blend(log_trees, shape_log_probabilities_of(model, cal_shapes),
-                                    cal.y)  # fmt: skip
+    log_shape = shape_log_probabilities_of(model, cal_shapes)
+    weight, temperature = fit_blend(log_trees, log_shape, cal.y)
     shape_meta = {"version": SHAPE_VERSION, "library": "torch", "epochs": EPOCHS,
                   "threads": SHAPE_THREADS}  # fmt: skip
     return replace(model, shape_weight=weight, blend_temperature=temperature,
+                   shape_base=tuple(log_shape.mean(axis=0).tolist()),
                    meta={**model.meta, "shape": shape_meta})  # fmt: skip
 
 

@@ -82,9 +82,12 @@ def test_a_model_file_keeps_its_shape_network(tmp_path: Path) -> None:
     assert model is not None
     net = _random_net(4)
     path = tmp_path / "m.npz"
-    save_model(replace(model, shape=net, shape_weight=0.25, blend_temperature=1.1), path)
+    base = tuple(np.log(np.full(len(CLASSES), 1.0 / len(CLASSES))).tolist())
+    save_model(replace(model, shape=net, shape_weight=0.25, blend_temperature=1.1,
+                       shape_base=base), path)  # fmt: skip
     back = load_cause_model(path)
     assert back.shape is not None and back.shape_weight == 0.25 and back.blend_temperature == 1.1
+    assert back.shape_base == base
     for a, b in zip(back.shape.conv_w + back.shape.dense_w, net.conv_w + net.dense_w, strict=True):
         np.testing.assert_array_equal(a, b)
     assert back.classes == CLASSES
