@@ -139,7 +139,7 @@ def fit_shape_net(
             sched.step()
         say(f"shape network: epoch {epoch + 1}/{EPOCHS}, last batch's loss {loss.item():.3f}, "
             f"{time.monotonic() - t0:.0f} s")  # fmt: skip
-    return export_shape_net(net, mu, sd)
+    return export_shape_net(net, mu, sd, s.amin(0), s.amax(0))
 
 
 def shape_module(nn: Any, mu: Any, sd: Any) -> Any:
@@ -167,8 +167,10 @@ def shape_module(nn: Any, mu: Any, sd: Any) -> Any:
     return Net()
 
 
-def export_shape_net(net: Any, mu: Any, sd: Any) -> ShapeNet:
-    """The weights as float64 arrays, each batch normalisation folded into its convolution."""
+def export_shape_net(net: Any, mu: Any, sd: Any, lo: Any, hi: Any) -> ShapeNet:
+    """The weights as float64 arrays, each batch normalisation folded into its convolution;
+    ``mu``, ``sd``, ``lo``, ``hi``: the scalars' mean, spread and range over the fit windows
+    (inside it the clip leaves the fit's own inputs as they were)."""
     conv_w, conv_b = [], []
     for conv, bn in zip(net.convs, net.bns, strict=True):
         scale = (bn.weight.double() / (bn.running_var.double() + bn.eps).sqrt()).detach().numpy()
@@ -185,6 +187,8 @@ def export_shape_net(net: Any, mu: Any, sd: Any) -> ShapeNet:
         tuple(d.bias.double().detach().numpy() for d in dense),
         mu.double().numpy(),
         sd.double().numpy(),
+        lo.double().numpy(),
+        hi.double().numpy(),
     )
 
 

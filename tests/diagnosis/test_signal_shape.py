@@ -35,8 +35,9 @@ def _random_net(seed: int = 0) -> ShapeNet:
     conv_b = tuple(rng.normal(0, 0.1, c) for c in chans[1:])
     dense_w = (rng.normal(0, 0.3, (8, 2 * chans[-1] + len(SCALARS))), rng.normal(0, 0.3, (6, 8)))
     dense_b = (rng.normal(0, 0.1, 8), rng.normal(0, 0.1, 6))
-    return ShapeNet(conv_w, conv_b, dense_w, dense_b, np.zeros(len(SCALARS)),
-                    np.ones(len(SCALARS)))  # fmt: skip
+    n = len(SCALARS)
+    return ShapeNet(conv_w, conv_b, dense_w, dense_b, np.zeros(n), np.ones(n), np.full(n, -3.0),
+                    np.full(n, 3.0))  # fmt: skip
 
 
 def test_a_window_of_any_length_becomes_three_bounded_channels() -> None:
@@ -111,7 +112,7 @@ def test_the_numpy_network_reads_as_pytorch_does() -> None:
         loss.backward()
         opt.step()
     net.eval()
-    exported = export_shape_net(net, mu, sd)
+    exported = export_shape_net(net, mu, sd, torch.full_like(mu, -9.0), torch.full_like(mu, 9.0))
     x = torch.randn(4, 3, SHAPE_SAMPLES)
     sc = torch.randn(4, len(SCALARS))
     with torch.no_grad():
@@ -141,3 +142,17 @@ def test_the_network_fit_is_repeatable() -> None:
     for x, y in zip(a.conv_w + a.dense_w + a.conv_b, b.conv_w + b.dense_w + b.conv_b, strict=True):
         np.testing.assert_array_equal(x, y)
     assert not np.array_equal(a.dense_w[1], fit_shape_net(shapes, seed=1).dense_w[1])
+
+
+def test_a_scalar_outside_the_fits_range_reads_as_its_nearest_end() -> None:
+    net = _random_net(7)
+    rng = np.random.default_rng(8)
+    chans = rng.normal(size=(3, SHAPE_SAMPLES))
+    inside = np.zeros(len(SCALARS))
+    inside[SCALARS.index("integrating")] = 3.0
+    beyond = inside.copy()
+    beyond[SCALARS.index("integrating")] = 1e6
+    np.testing.assert_array_equal(
+        shape_log_probabilities(net, ShapeInput(chans, beyond)),
+        shape_log_probabilities(net, ShapeInput(chans, inside)),
+    )
