@@ -3,12 +3,13 @@
 Steps: draw the corpus windows (``simulator.corpus``) of three seeds apart (fit, calibration,
 check), run the chain's tests on each (``diagnosis.chain.chain_evidence``), fit LightGBM's
 multiclass gradient-boosted trees (Ke et al. 2017) on the first, fit one softmax temperature
-(Guo et al. 2017) on the second, report the third, and export the trees into the numpy file the
-diagnosis reads (``diagnosis.cause_model``). Real plant records play no part: they are test
-sets only.
+(Guo et al. 2017) on the second, fit the shape network on the first and its blend with the trees
+on the second (``service.shape_model_fit``), report the third, and export it all into the numpy
+file the diagnosis reads (``diagnosis.cause_model``). Real plant records play no part: they are
+test sets only.
 
-LightGBM is imported here only (the ``fit`` extra), so the CLI's other commands never pay its
-import time.
+LightGBM and PyTorch are imported by the fit only (the ``fit`` extra), so the CLI's other
+commands never pay their import time.
 """
 
 from __future__ import annotations
@@ -439,8 +440,9 @@ def model_probabilities(
 def shape_log_probabilities_of(model: CauseModel, shapes: CorpusShapes) -> NDArray[np.float64]:
     """The model's shape network's log-probabilities of the judged windows of ``shapes``
     (the rows ``corpus_evidence`` keeps, in order)."""
-    assert model.shape is not None
     net = model.shape
+    if net is None:
+        raise ValueError("the model has no shape network")
     rows = np.flatnonzero(shapes.judged)
     return np.array(
         [
