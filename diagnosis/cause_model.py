@@ -260,10 +260,15 @@ def decide(model: CauseModel, x: FloatArray, shape: ShapeInput | None = None) ->
     if model.shape is None or shape is None:
         return Decision(p, raw, w.base.copy(), contrib)
     log_shape = shape_log_probabilities(model.shape, shape)
-    p = blended(
-        np.log(np.maximum(p, 1e-300)), log_shape, model.shape_weight, model.blend_temperature
-    )
+    p = blended(safe_log(p), log_shape, model.shape_weight, model.blend_temperature)
     return Decision(p, raw, w.base.copy(), contrib, np.exp(log_shape))
+
+
+def safe_log(p: FloatArray) -> FloatArray:
+    """log p, a probability that underflowed to 0 read as 1e-300 (a blend weight of 0 or 1
+    would otherwise multiply −inf by 0)."""
+    out: FloatArray = np.log(np.maximum(p, 1e-300))
+    return out
 
 
 def blended(

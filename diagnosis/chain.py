@@ -18,7 +18,13 @@ import numpy as np
 from plantcheck.diagnosis.acf_decay import acf_decay_ratio
 from plantcheck.diagnosis.baseline import DEGRADED_RATIO, Baseline, variability
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
-from plantcheck.diagnosis.cause_model import CauseModel, Decision, decide, shipped_cause_model
+from plantcheck.diagnosis.cause_model import (
+    CauseModel,
+    Decision,
+    decide,
+    safe_log,
+    shipped_cause_model,
+)
 from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
 from plantcheck.diagnosis.controller_change import (
     ControllerChangeParams,
@@ -1093,7 +1099,7 @@ def _moved_most(
     moves = d.contributions[k].copy()
     if d.shape_probabilities is not None:
         moves *= (1.0 - model.shape_weight) / (model.temperature * model.blend_temperature)
-        log_shape = np.log(np.maximum(d.shape_probabilities, 1e-300))
+        log_shape = safe_log(d.shape_probabilities)
         base = (
             np.asarray(model.shape_base)
             if model.shape_base

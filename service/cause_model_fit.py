@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from plantcheck.diagnosis.cause_model import CauseModel, blended, calibrated, decide
+from plantcheck.diagnosis.cause_model import CauseModel, blended, calibrated, decide, safe_log
 from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
 from plantcheck.diagnosis.signal_shape import ShapeInput, shape_log_probabilities
@@ -418,7 +418,7 @@ def with_blend(model: CauseModel, cal: CorpusEvidence, cal_shapes: CorpusShapes)
 
 def _log_trees(model: CauseModel, ev: CorpusEvidence) -> NDArray[np.float64]:
     p = calibrated(raw_scores(model, ev.x), model.temperature)
-    return np.log(np.maximum(p, 1e-300))
+    return safe_log(p)
 
 
 def model_probabilities(

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from plantcheck.diagnosis.cause_model import blended
+from plantcheck.diagnosis.cause_model import blended, safe_log
 from plantcheck.diagnosis.chain import chain_shape_input
 from plantcheck.diagnosis.signal_shape import SCALARS, SHAPE_SAMPLES, ShapeNet
 from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, draw_case
@@ -203,7 +203,7 @@ def fit_blend(
 
         def nll(log_t: float, w: float = w) -> float:
             p = blended(log_trees, log_shape, w, math.exp(log_t))
-            return float(-np.mean(np.log(np.maximum(p[rows, y], 1e-300))))
+            return float(-np.mean(safe_log(p[rows, y])))
 
         res = minimize_scalar(nll, bounds=(math.log(0.2), math.log(5.0)), method="bounded")
         if res.fun < best[0]:
