@@ -28,6 +28,7 @@ from plantcheck.service.cause_model_fit import (
     CHECK_SEED,
     FIT_SEED,
     FIT_WINDOWS,
+    SHAPE_WINDOW_FACTOR,
     CorpusEvidence,
     corpus_evidence,
     expected_calibration_error,
@@ -167,15 +168,18 @@ def left_out(
     families: tuple[tuple[str, str], ...] = LEFT_OUT,
 ) -> None:
     """Fit without each of ``families``, test on its check windows: the trees, and the shape
-    network (on the judged fit windows of the other families) blended in as the shipped model
-    is, when it has one."""
+    network (on the judged windows of the other families among its ``SHAPE_WINDOW_FACTOR``
+    times as many fit windows) blended in as the shipped model is, when it has one."""
     fit = corpus_evidence(FIT_SEED, windows, progress=say, cache=CACHE)
     small = side_windows(windows)
     cal = corpus_evidence(CALIBRATION_SEED, small, progress=say, cache=CACHE)
     shapes = None
     if chk_shapes is not None:
-        shapes = (corpus_shapes(FIT_SEED, windows, progress=say, cache=CACHE),
-                  corpus_shapes(CALIBRATION_SEED, small, progress=say, cache=CACHE))  # fmt: skip
+        # the network reads more windows than the trees: their families come with their evidence
+        wide = SHAPE_WINDOW_FACTOR * windows
+        shapes = (corpus_shapes(FIT_SEED, wide, progress=say, cache=CACHE),
+                  corpus_shapes(CALIBRATION_SEED, small, progress=say, cache=CACHE),
+                  corpus_evidence(FIT_SEED, wide, progress=say, cache=CACHE).family)  # fmt: skip
     print("left-out family          windows  full model  fitted without  drop   (accuracy)")
     for key, value in families:
         keep = np.array(fit.family[key]) != value
@@ -187,8 +191,9 @@ def left_out(
         chk_fam = _rows(chk, fam)
         fam_shapes = None
         if shapes is not None and chk_shapes is not None:
-            fit_shapes, cal_shapes = shapes
-            net = fit_shape_net(_judged_rows(fit_shapes, keep), progress=say)
+            fit_shapes, cal_shapes, net_family = shapes
+            net_keep = np.array(net_family[key]) != value
+            net = fit_shape_net(_judged_rows(fit_shapes, net_keep), progress=say)
             m = with_blend(replace(m, shape=net), _rows(cal, cal_keep),
                            _judged_rows(cal_shapes, cal_keep))  # fmt: skip
             fam_shapes = _judged_rows(chk_shapes, fam)

@@ -34,6 +34,7 @@ from plantcheck.diagnosis.cause_model import CauseModel, blended, calibrated, de
 from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
 from plantcheck.diagnosis.signal_shape import ShapeInput, shape_log_probabilities
+from plantcheck.service.corpus_cache import cached_start
 from plantcheck.service.shape_model_fit import (
     EPOCHS,
     SHAPE_VERSION,
@@ -87,6 +88,12 @@ SIDE_WINDOWS = 8_000
 figure to two decimals need no more, and each window drawn costs the fit's time."""
 
 
+SHAPE_WINDOW_FACTOR = 2
+"""The shape network reads this many times the trees' fit windows (the first ones of the fit
+seed, the trees' own among them): on 32,000 and 64,000 windows it read the check seed at 0.825
+and 0.853 alone, still learning where the trees no longer do (benchmarks/README.md)."""
+
+
 def side_windows(windows: int) -> int:
     """Windows of the calibration and of the check seed beside ``windows`` fit windows: a
     quarter as many, 60 to ``SIDE_WINDOWS``."""
@@ -128,15 +135,50 @@ def corpus_evidence(
     cache: Path | None = None,
 ) -> CorpusEvidence:
     """The evidence of windows 0..n-1 of corpus ``seed``, computed on ``jobs`` processes (all
-    cores by default) and kept in ``cache`` (a folder) when given."""
-    name = f"corpus-v{CORPUS_VERSION}.{EVIDENCE_VERSION}-{seed}-{n}.npz"
-    path = cache / name if cache else None
+    cores by default) and kept in ``cache`` (a folder) when given; a cached file of fewer
+    windows of the seed is read as their start (``service.corpus_cache``)."""
+    stem = f"corpus-v{CORPUS_VERSION}.{EVIDENCE_VERSION}-{seed}-"
+    path = cache / f"{stem}{n}.npz" if cache else None
     if path is not None and path.is_file():
-        with np.load(path, allow_pickle=False) as z:
-            fam = json.loads(bytes(z["family"]).decode())
-            return CorpusEvidence(z["x"], z["y"], tuple(json.loads(bytes(z["rules"]).decode())),
-                                  {k: tuple(v) for k, v in fam.items()}, z["samples"],
-                                  int(z["skipped"]))  # fmt: skip
+        return _load_evidence(path)
+    start = cached_start(cache, stem, n) if cache else None
+    head = _load_evidence(start[0]) if start is not None else None
+    tail = _draw_evidence(seed, 0 if start is None else start[1], n, jobs, progress)
+    out = tail if head is None else _joined(head, tail)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(
+            path, x=out.x, y=out.y, samples=out.samples, skipped=np.array(out.skipped),
+            rules=np.frombuffer(json.dumps(out.rules).encode(), dtype=np.uint8),
+            family=np.frombuffer(json.dumps(out.family).encode(), dtype=np.uint8),
+        )  # fmt: skip
+    return out
+
+
+def _load_evidence(path: Path) -> CorpusEvidence:
+    with np.load(path, allow_pickle=False) as z:
+        fam = json.loads(bytes(z["family"]).decode())
+        return CorpusEvidence(z["x"], z["y"], tuple(json.loads(bytes(z["rules"]).decode())),
+                              {k: tuple(v) for k, v in fam.items()}, z["samples"],
+                              int(z["skipped"]))  # fmt: skip
+
+
+def _joined(head: CorpusEvidence, tail: CorpusEvidence) -> CorpusEvidence:
+    """The windows of ``head``, then those of ``tail``."""
+    return CorpusEvidence(
+        np.concatenate((head.x, tail.x)),
+        np.concatenate((head.y, tail.y)),
+        head.rules + tail.rules,
+        {k: head.family[k] + tail.family[k] for k in head.family},
+        np.concatenate((head.samples, tail.samples)),
+        head.skipped + tail.skipped,
+    )
+
+
+def _draw_evidence(
+    seed: int, first: int, n: int, jobs: int | None, progress: Callable[[str], None] | None
+) -> CorpusEvidence:
+    """The evidence of windows ``first``..n-1 of corpus ``seed``."""
     jobs = jobs or os.cpu_count() or 1
     rows: list[list[float]] = []
     ys: list[int] = []
@@ -147,8 +189,8 @@ def corpus_evidence(
     t0 = time.monotonic()
     ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
     with ctx.Pool(jobs) as pool:
-        for done, (y, rule, vec, family, ns) in enumerate(
-            pool.imap(_one, [(seed, i) for i in range(n)], chunksize=16), 1
+        for drawn, (y, rule, vec, family, ns) in enumerate(
+            pool.imap(_one, [(seed, i) for i in range(first, n)], chunksize=16), 1
         ):
             if vec is None:
                 skipped += 1
@@ -159,11 +201,12 @@ def corpus_evidence(
                 lengths.append(ns)
                 for k in FAMILY_KEYS:
                     fams[k].append(family[k])
+            done = first + drawn
             if progress and (done % 500 == 0 or done == n):
-                rate = done / max(time.monotonic() - t0, 1e-9)
+                rate = drawn / max(time.monotonic() - t0, 1e-9)
                 progress(f"corpus seed {seed}: {done}/{n} windows, {rate:.0f}/s, "
                          f"about {(n - done) / rate:.0f} s left")  # fmt: skip
-    out = CorpusEvidence(
+    return CorpusEvidence(
         np.array(rows, dtype=np.float64).reshape(-1, len(FEATURE_NAMES)),
         np.array(ys, dtype=np.int64),
         tuple(rules),
@@ -171,14 +214,6 @@ def corpus_evidence(
         np.array(lengths, dtype=np.int64),
         skipped,
     )
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path, x=out.x, y=out.y, samples=out.samples, skipped=np.array(skipped),
-            rules=np.frombuffer(json.dumps(out.rules).encode(), dtype=np.uint8),
-            family=np.frombuffer(json.dumps(out.family).encode(), dtype=np.uint8),
-        )  # fmt: skip
-    return out
 
 
 def fit_trees(
@@ -372,10 +407,12 @@ def fit_model(
     model = export_trees(booster, temperature, meta)
     trees_f1, _ = macro_f1(chk.y, raw_scores(model, chk.x).argmax(axis=1), len(CLASSES))
     if shape:
-        fit_shapes = corpus_shapes(fit_s, windows, jobs, say, cache)
+        fit_shapes = corpus_shapes(fit_s, SHAPE_WINDOW_FACTOR * windows, jobs, say, cache)
         cal_shapes = corpus_shapes(cal_s, small, jobs, say, cache)
         net = fit_shape_net(fit_shapes, progress=say)
         model = with_blend(replace(model, shape=net), cal, cal_shapes)
+        shape_meta = {**model.meta["shape"], "windows": int(fit_shapes.y.size)}  # type: ignore[dict-item]
+        model = replace(model, meta={**model.meta, "shape": shape_meta})
         say(f"blend: shape network weight {model.shape_weight}, "
             f"temperature {model.blend_temperature:.3f}")  # fmt: skip
     chk_shapes = corpus_shapes(chk_s, small, jobs, say, cache) if shape else None

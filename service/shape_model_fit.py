@@ -25,6 +25,7 @@ from scipy.optimize import minimize_scalar
 from plantcheck.diagnosis.cause_model import blended, safe_log
 from plantcheck.diagnosis.chain import chain_shape_input
 from plantcheck.diagnosis.signal_shape import SCALARS, SHAPE_SAMPLES, ShapeNet
+from plantcheck.service.corpus_cache import cached_start
 from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, draw_case
 
 SHAPE_VERSION = 1
@@ -77,33 +78,61 @@ def corpus_shapes(
     cache: Path | None = None,
 ) -> CorpusShapes:
     """The shape inputs of windows 0..n-1 of corpus ``seed`` on ``jobs`` processes, kept in
-    ``cache`` (a folder) when given: about 90 windows/s on 2 cores."""
-    name = f"shapes-v{CORPUS_VERSION}.{SHAPE_VERSION}-{seed}-{n}.npz"
-    path = cache / name if cache else None
+    ``cache`` (a folder) when given: about 90 windows/s on 2 cores. A window depends on its
+    seed and index only, so the largest cached file of fewer windows of the same seed is read
+    as their start and only the rest are drawn."""
+    path = cache / f"{_shapes_stem(seed)}{n}.npz" if cache else None
     if path is not None and path.is_file():
-        with np.load(path, allow_pickle=False) as z:
-            return CorpusShapes(z["channels"], z["scalars"], z["y"], z["judged"])
-    chans = np.zeros((n, 3, SHAPE_SAMPLES), dtype=np.float16)
-    scalars = np.zeros((n, len(SCALARS)), dtype=np.float32)
-    y = np.zeros(n, dtype=np.int64)
-    judged = np.zeros(n, dtype=bool)
+        return _load_shapes(path)
+    start = cached_start(cache, _shapes_stem(seed), n) if cache else None
+    head = _load_shapes(start[0]) if start is not None else None
+    first = 0 if head is None else head.y.size
+    tail = _draw_shapes(seed, first, n, jobs, progress)
+    out = tail if head is None else CorpusShapes(*(np.concatenate(pair) for pair in zip(
+        (head.channels, head.scalars, head.y, head.judged),
+        (tail.channels, tail.scalars, tail.y, tail.judged), strict=True)))  # fmt: skip
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(
+            path, channels=out.channels, scalars=out.scalars, y=out.y, judged=out.judged
+        )
+    return out
+
+
+def _shapes_stem(seed: int) -> str:
+    """A cached file's name less its window count and ``.npz``."""
+    return f"shapes-v{CORPUS_VERSION}.{SHAPE_VERSION}-{seed}-"
+
+
+def _load_shapes(path: Path) -> CorpusShapes:
+    with np.load(path, allow_pickle=False) as z:
+        return CorpusShapes(z["channels"], z["scalars"], z["y"], z["judged"])
+
+
+def _draw_shapes(
+    seed: int, first: int, n: int, jobs: int | None, progress: Callable[[str], None] | None
+) -> CorpusShapes:
+    """The shape inputs of windows ``first``..n-1 of corpus ``seed``."""
+    count = n - first
+    chans = np.zeros((count, 3, SHAPE_SAMPLES), dtype=np.float16)
+    scalars = np.zeros((count, len(SCALARS)), dtype=np.float32)
+    y = np.zeros(count, dtype=np.int64)
+    judged = np.zeros(count, dtype=bool)
+    if count == 0:
+        return CorpusShapes(chans, scalars, y, judged)
     t0 = time.monotonic()
     ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
     with ctx.Pool(jobs or os.cpu_count() or 1) as pool:
-        work = pool.imap(_one, [(seed, i) for i in range(n)], chunksize=32)
+        work = pool.imap(_one, [(seed, i) for i in range(first, n)], chunksize=32)
         for i, (cls, c, s, ok) in enumerate(work):
             # the channels went through float16 in shape_input: stored exactly
             chans[i], scalars[i], y[i], judged[i] = c, s, cls, ok
-            done = i + 1
+            done = first + i + 1
             if progress and (done % 2000 == 0 or done == n):
-                rate = done / max(time.monotonic() - t0, 1e-9)
+                rate = (i + 1) / max(time.monotonic() - t0, 1e-9)
                 progress(f"corpus seed {seed} shapes: {done}/{n} windows, {rate:.0f}/s, "
                          f"about {(n - done) / rate:.0f} s left")  # fmt: skip
-    out = CorpusShapes(chans, scalars, y, judged)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, channels=chans, scalars=scalars, y=y, judged=judged)
-    return out
+    return CorpusShapes(chans, scalars, y, judged)
 
 
 def fit_shape_net(

@@ -1,0 +1,49 @@
+"""A cached corpus file of fewer windows starts a longer one (``service.corpus_cache``): what
+is read from it plus what is drawn after it equals the longer corpus drawn at once."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from plantcheck.service.cause_model_fit import corpus_evidence
+from plantcheck.service.shape_model_fit import corpus_shapes
+
+
+def _only(folder: Path, stem: str) -> Path:
+    (path,) = folder.glob(f"{stem}*.npz")
+    return path
+
+
+def test_more_shapes_draw_only_the_windows_beyond_the_cached_ones(tmp_path: Path) -> None:
+    whole = corpus_shapes(303, 10, jobs=1)
+    head = corpus_shapes(303, 4, jobs=1, cache=tmp_path)
+    head.channels[:] = 0  # what is read from the cache, not drawn again, shows as zeros
+    np.savez_compressed(_only(tmp_path, "shapes-"), channels=head.channels,
+                        scalars=head.scalars, y=head.y, judged=head.judged)  # fmt: skip
+    grown = corpus_shapes(303, 10, jobs=1, cache=tmp_path)
+    assert not grown.channels[:4].any()
+    np.testing.assert_array_equal(grown.channels[4:], whole.channels[4:])
+    for got, want in zip((grown.scalars, grown.y, grown.judged),
+                         (whole.scalars, whole.y, whole.judged), strict=True):  # fmt: skip
+        np.testing.assert_array_equal(got, want)
+    assert len(list(tmp_path.glob("shapes-*-10.npz"))) == 1
+
+
+def test_more_evidence_draws_only_the_windows_beyond_the_cached_ones(tmp_path: Path) -> None:
+    whole = corpus_evidence(303, 14, jobs=1)
+    corpus_evidence(303, 6, jobs=1, cache=tmp_path)
+    path = _only(tmp_path, "corpus-")
+    with np.load(path) as z:
+        saved = dict(z)
+    rows = saved["x"].shape[0]
+    assert 0 < rows < whole.x.shape[0]
+    saved["x"] = np.zeros_like(saved["x"])
+    np.savez_compressed(path, **saved)
+    grown = corpus_evidence(303, 14, jobs=1, cache=tmp_path)
+    assert not grown.x[:rows].any()
+    np.testing.assert_array_equal(grown.x[rows:], whole.x[rows:])
+    np.testing.assert_array_equal(grown.y, whole.y)
+    np.testing.assert_array_equal(grown.samples, whole.samples)
+    assert (grown.rules, grown.family, grown.skipped) == (whole.rules, whole.family, whole.skipped)
