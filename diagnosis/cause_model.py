@@ -190,7 +190,19 @@ class Decision:
 
 
 def load_cause_model(path: Path) -> CauseModel:
-    """Read a model written by ``plantcheck model fit`` (``np.load`` without pickle)."""
+    """Read a model written by ``plantcheck model fit`` (``np.load`` without pickle); a file
+    that lacks an array the model needs (written by another version) is a ValueError naming
+    it and the command that rebuilds the file."""
+    try:
+        return _read_model(path)
+    except KeyError as exc:
+        raise ValueError(
+            f"{path}: the model file has no array {exc.args[0]!r} (written by another version of "
+            "plantcheck?): rebuild it with `plantcheck model fit --out FILE`"
+        ) from exc
+
+
+def _read_model(path: Path) -> CauseModel:
     with np.load(path, allow_pickle=False) as z:
         head = json.loads(bytes(z["head"]).decode())
         return CauseModel(

@@ -41,7 +41,8 @@ def fit_cmd(
         int | None, typer.Option(min=1, help="Processes (default: every core).")
     ] = None,
     cache: Annotated[
-        Path | None, typer.Option(help="Folder keeping the corpus' evidence between runs.")
+        Path | None,
+        typer.Option(help="Folder keeping the corpus' evidence and shapes between runs."),
     ] = None,
     tree_seed: Annotated[
         int,
@@ -63,9 +64,10 @@ def fit_cmd(
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
 
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
-    the rules' macro-F1 on the same windows) to stdout. About 20 minutes on 2 cores for
-    the default 64,000 windows (80,000 drawn in all, each fault's twin simulated beside it);
-    with ``--cache``, a second run only fits (under a minute).
+    the rules' macro-F1 on the same windows) to stdout. About an hour on 2 cores for the
+    default 64,000 windows (the shape network reads twice as many; each fault's twin is
+    simulated beside it); with ``--cache``, a second run only fits (about 5 minutes), and one
+    with more windows draws only the new ones.
     """
     try:
         import lightgbm  # noqa: F401

@@ -94,6 +94,20 @@ def test_a_model_file_keeps_its_shape_network(tmp_path: Path) -> None:
     assert back.classes == CLASSES
 
 
+def test_a_model_file_without_an_array_it_needs_names_it(tmp_path: Path) -> None:
+    from plantcheck.service.cause_model_fit import save_model
+
+    model = shipped_cause_model()
+    assert model is not None
+    path = tmp_path / "m.npz"
+    save_model(model, path)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files if k != "shape_scalar_min"}
+    np.savez_compressed(path, **arrays)
+    with pytest.raises(ValueError, match=r"shape_scalar_min.*plantcheck model fit"):
+        load_cause_model(path)
+
+
 def test_the_numpy_network_reads_as_pytorch_does() -> None:
     """The fit exports the trained module with its batch normalisation folded in; numpy must
     then give PyTorch's probabilities."""
