@@ -88,15 +88,23 @@ def corpus_shapes(
     head = _load_shapes(start[0]) if start is not None else None
     first = 0 if head is None else head.y.size
     tail = _draw_shapes(seed, first, n, jobs, progress)
-    out = tail if head is None else CorpusShapes(*(np.concatenate(pair) for pair in zip(
-        (head.channels, head.scalars, head.y, head.judged),
-        (tail.channels, tail.scalars, tail.y, tail.judged), strict=True)))  # fmt: skip
+    out = tail if head is None else _joined(head, tail)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(
             path, channels=out.channels, scalars=out.scalars, y=out.y, judged=out.judged
         )
     return out
+
+
+def _joined(head: CorpusShapes, tail: CorpusShapes) -> CorpusShapes:
+    """The windows of ``head``, then those of ``tail``."""
+    return CorpusShapes(
+        np.concatenate((head.channels, tail.channels)),
+        np.concatenate((head.scalars, tail.scalars)),
+        np.concatenate((head.y, tail.y)),
+        np.concatenate((head.judged, tail.judged)),
+    )
 
 
 def _shapes_stem(seed: int) -> str:
