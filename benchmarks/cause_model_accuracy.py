@@ -193,9 +193,10 @@ def left_out(
         if shapes is not None and chk_shapes is not None:
             fit_shapes, cal_shapes, net_family = shapes
             net_keep = np.array(net_family[key]) != value
-            net = fit_shape_net(_judged_rows(fit_shapes, net_keep), progress=say)
+            net_windows = _judged_rows(fit_shapes, net_keep)
+            net = fit_shape_net(net_windows, progress=say)
             m = with_blend(replace(m, shape=net), _rows(cal, cal_keep),
-                           _judged_rows(cal_shapes, cal_keep))  # fmt: skip
+                           _judged_rows(cal_shapes, cal_keep), net_windows.y.size)  # fmt: skip
             fam_shapes = _judged_rows(chk_shapes, fam)
         y = chk.y[fam]
         p_out = model_probabilities(m, chk_fam, fam_shapes).argmax(axis=1)

@@ -410,9 +410,7 @@ def fit_model(
         fit_shapes = corpus_shapes(fit_s, SHAPE_WINDOW_FACTOR * windows, jobs, say, cache)
         cal_shapes = corpus_shapes(cal_s, small, jobs, say, cache)
         net = fit_shape_net(fit_shapes, progress=say)
-        model = with_blend(replace(model, shape=net), cal, cal_shapes)
-        shape_meta = {**model.meta["shape"], "windows": int(fit_shapes.y.size)}  # type: ignore[dict-item]
-        model = replace(model, meta={**model.meta, "shape": shape_meta})
+        model = with_blend(replace(model, shape=net), cal, cal_shapes, fit_shapes.y.size)
         say(f"blend: shape network weight {model.shape_weight}, "
             f"temperature {model.blend_temperature:.3f}")  # fmt: skip
     chk_shapes = corpus_shapes(chk_s, small, jobs, say, cache) if shape else None
@@ -440,14 +438,17 @@ def save_model(model: CauseModel, path: Path) -> None:
         np.savez_compressed(fh, **model.to_arrays())  # type: ignore[arg-type]
 
 
-def with_blend(model: CauseModel, cal: CorpusEvidence, cal_shapes: CorpusShapes) -> CauseModel:
+def with_blend(
+    model: CauseModel, cal: CorpusEvidence, cal_shapes: CorpusShapes, fit_windows: int
+) -> CauseModel:
     """``model`` (trees and shape network) with the network's weight in the blend and the
-    blend's temperature that the calibration windows (``cal``, ``cal_shapes``) give."""
+    blend's temperature that the calibration windows (``cal``, ``cal_shapes``) give;
+    ``fit_windows``: the windows the network was fitted on (kept in the model's meta)."""
     log_trees = _log_trees(model, cal)
     log_shape = shape_log_probabilities_of(model, cal_shapes)
     weight, temperature = fit_blend(log_trees, log_shape, cal.y)
     shape_meta = {"version": SHAPE_VERSION, "library": "torch", "epochs": EPOCHS,
-                  "threads": SHAPE_THREADS}  # fmt: skip
+                  "threads": SHAPE_THREADS, "windows": int(fit_windows)}  # fmt: skip
     return replace(model, shape_weight=weight, blend_temperature=temperature,
                    shape_base=tuple(log_shape.mean(axis=0).tolist()),
                    meta={**model.meta, "shape": shape_meta})  # fmt: skip
