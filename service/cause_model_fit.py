@@ -88,10 +88,11 @@ SIDE_WINDOWS = 8_000
 figure to two decimals need no more, and each window drawn costs the fit's time."""
 
 
-SHAPE_WINDOW_FACTOR = 2
+SHAPE_WINDOW_FACTOR = 4
 """The shape network reads this many times the trees' fit windows (the first ones of the fit
-seed, the trees' own among them): on 32,000 and 64,000 windows it read the check seed at 0.825
-and 0.853 alone, still learning where the trees no longer do (benchmarks/README.md)."""
+seed, the trees' own among them): on 32,000, 64,000, 128,000 and 256,000 windows it read the
+check seed at 0.825, 0.853, 0.880 and 0.896 alone, still learning where the trees no longer do
+(benchmarks/README.md)."""
 
 
 def side_windows(windows: int) -> int:

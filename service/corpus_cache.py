@@ -3,7 +3,7 @@
 Window ``i`` of corpus ``seed`` depends on the seed and the index alone
 (``simulator.corpus.draw_case``), so the first ``m`` windows of a file of ``n > m`` are those
 of the file of ``m``: a cached file is read as a longer one's start and only the rest are
-drawn (the shape network reads twice the trees' windows, and the windows cost most of a fit).
+drawn (the shape network reads four times the trees' windows, and the windows cost most of a fit).
 """
 
 from __future__ import annotations
