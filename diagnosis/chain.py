@@ -443,7 +443,12 @@ def chain_shape_input(
     p = params or default_chain_params()
     win = check_window(np.asarray(pv, dtype=np.float64), np.asarray(op, dtype=np.float64),
                        sp, auto, p.window)  # fmt: skip
-    return shape_input(win.pv, win.op, win.sp, loop_type), _judged(win)
+    return _shape_input(win, loop_type), _judged(win)
+
+
+def _shape_input(win: WindowReport, loop_type: str) -> ShapeInput:
+    """The shape network's input of a checked window, with the noise σ the checks found."""
+    return shape_input(win.pv, win.op, win.sp, loop_type, win.error_noise, win.op_noise)
 
 
 def _read_events(run: _Run) -> bool:
@@ -1052,7 +1057,7 @@ def _weigh(run: _Run, model: CauseModel) -> None:
     ev = _evidence(run)
     shape = None
     if model.shape is not None:
-        shape = shape_input(run.win.pv, run.win.op, run.win.sp, run.loop_type)
+        shape = _shape_input(run.win, run.loop_type)
     d = decide(model, evidence_vector(ev), shape)
     probs = d.probabilities.copy()
     if run.exclude_stiction and "stiction" in model.classes:
@@ -1095,7 +1100,7 @@ def _moved_most(
     of the class less what it gives an average window (``shape_base``; its ``value``: its
     probability of the class)."""
     names = list(model.features)
-    values = [_rounded(ev.get(n)) for n in names]
+    values: list[float | None] = [ev.get(n) for n in names]  # rounded for the few listed
     moves = d.contributions[k].copy()
     if d.shape_probabilities is not None:
         moves *= (1.0 - model.shape_weight) / (model.temperature * model.blend_temperature)
@@ -1106,14 +1111,14 @@ def _moved_most(
             else np.full(log_shape.size, log_shape.mean())
         )
         names.append(SHAPE_EVIDENCE)
-        values.append(_rounded(float(d.shape_probabilities[k])))
+        values.append(float(d.shape_probabilities[k]))
         moves = np.append(
             moves,
             model.shape_weight / model.blend_temperature * (log_shape[k] - base[k]),
         )
     order = np.argsort(-np.abs(moves))[:TOP_EVIDENCE]
     return [
-        {"name": names[i], "value": values[i], "contribution": round(float(moves[i]), 3)}
+        {"name": names[i], "value": _rounded(values[i]), "contribution": round(float(moves[i]), 3)}
         for i in order.tolist()
         if moves[i] != 0.0
     ]

@@ -61,16 +61,25 @@ def _resampled(x: FloatArray, points: int) -> FloatArray:
     return np.interp(np.linspace(0, n - 1, points), np.arange(n), x)
 
 
-def shape_input(pv: FloatArray, op: FloatArray, sp: FloatArray, loop_type: str) -> ShapeInput:
+def shape_input(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray,
+    loop_type: str,
+    error_noise: float | None = None,
+    op_noise: float | None = None,
+) -> ShapeInput:
     """The network's input for one window (PV and SP in engineering units, OP in %, no NaN).
+    ``error_noise``, ``op_noise``: ``noise_sigma`` of SP − PV and of OP where the caller has
+    them (the window checks do), else computed here.
 
     The channels are stored as float16 in the fit's cache, so they pass through float16 here
     too: the network reads the same numbers in the fit and in a diagnosis."""
     e = sp - pv
     se = float(np.std(e)) + 1e-12
     so = float(np.std(op)) + 1e-12
-    ne = max(noise_sigma(e), 1e-9)
-    no = max(noise_sigma(op), 1e-9)
+    ne = max(noise_sigma(e) if error_noise is None else error_noise, 1e-9)
+    no = max(noise_sigma(op) if op_noise is None else op_noise, 1e-9)
     chans = np.stack(
         [
             _resampled(e, SHAPE_SAMPLES) / se,

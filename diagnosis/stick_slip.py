@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import NamedTuple
@@ -48,7 +49,6 @@ from plantcheck.diagnosis.peaks import peaks_apart, prominent_extremes
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     IntArray,
-    centred_time,
     first_order_lags,
     median,
     moving_average,
@@ -370,34 +370,6 @@ DELAY_GRID = (0, 1, 2, 4, 8)
 """Process dead times tried by the linear model, samples."""
 
 
-def _best_fits(
-    y: FloatArray, regressors: FloatArray, signs: FloatArray, split: int
-) -> tuple[float, float]:
-    """Smallest residual sums of squares of y ≈ c0 + c1·t + c2·r over the candidate
-    regressors r of two models (rows of ``regressors`` before and from ``split``), with
-    c2·sign >= 0 (else c2 = 0), ``signs`` one per row (0: c2 of either sign).
-
-    Frisch–Waugh: with the straight line taken out of y, each candidate needs one slope only,
-    and the line's share of a regressor comes from its sum and its product with the time axis
-    (no detrended copy of the regressors: this runs a few dozen times per window); every group
-    is fitted in the same few array passes. Each row is taken relative to its first value, so
-    that a level of 50 % does not swamp a variation of a tenth of a percent."""
-    n = y.size
-    t, tt = centred_time(n)
-    tt = tt or 1.0
-    centred = y - y.sum() / n
-    r0 = centred - ((centred @ t) / tt) * t  # y less its straight line
-    rel = regressors - regressors[:, :1]
-    s1 = rel.sum(axis=1)
-    st = rel @ t
-    ss = np.einsum("gn,gn->g", rel, rel) - s1 * s1 / n - st * st / tt
-    py = rel @ r0
-    pos = ss > 0
-    gain = np.where(pos & ((py * signs > 0) | (signs == 0)), py * py / np.where(pos, ss, 1.0), 0.0)
-    total = float(r0 @ r0)
-    return total - float(gain[:split].max()), total - float(gain[split:].max())
-
-
 @dataclass(frozen=True)
 class _Dynamics:
     """Computed once per window: OP through every lag of ``LAG_GRID`` the linear model may use
@@ -489,34 +461,116 @@ def _step_rise(size: int) -> FloatArray:
     return out
 
 
-def _slip_evidence(
-    pv: FloatArray,
-    dyn: _Dynamics,
-    s: int,
-    a: int,
-    b: int,
-    toward: float,
-    integrating: bool,
-) -> tuple[float, float]:
-    """How well a stuck-then-slipping valve and how well OP explain the PV on [s, b].
+class _SlipSpan(NamedTuple):
+    """One stretch the two-model test reads: the PV it reads (itself or averaged), the stuck
+    phase's start, OP's turning point, the slip's last sample, and the slip's sign."""
+
+    pv: FloatArray
+    start: int
+    turn: int
+    end: int
+    toward: float
+
+
+SPAN_BATCH_SAMPLES = 20_000
+"""Samples of the two-model test's spans fitted side by side in one batch (its regressors:
+about 12 MB)."""
+
+
+def _slip_evidence(spans: list[_SlipSpan], dyn: _Dynamics, integrating: bool) -> FloatArray:
+    """How well a stuck-then-slipping valve and how well OP explain the PV on each span
+    [start, end]: the residual sums of squares (linear, stick-slip), one row per span.
 
     Two local models, each with a straight line for slow load drift and a first-order lag
     (time constants ``LAG_GRID``): *linear*, the PV follows OP through the process (dead
     times ``DELAY_GRID``, both as far as the loop's dynamics allow, gain of the controller's
     sign); *stick-slip*, the valve stands still and steps once, toward the set point, a few
-    samples around OP's turning point ``a``. For a level the valve sets the PV's slope, so
-    both inputs are integrated. Returns the residual sums of squares (linear, stick-slip):
-    this is the "PV changes faster than the loop's own dynamics allow for the OP move" of
-    methods §4.10, read with the dynamics the data allow.
-    """
-    y = pv[s : b + 1]
-    n = y.size
-    # a valve step a few samples around the turn, through each lag: samples since each step,
-    # -1 before it, never past the rise's end (n <= the window, a > s)
-    offsets = np.arange(a - s - 8, a - s + 3, 2)
-    since = np.maximum(np.arange(n)[None, :] - offsets[:, None], -1)
-    regressors = dyn.regressors(s, n, since, integrating)
-    return _best_fits(y, regressors, dyn.slip_signs[toward], dyn.n_linear)
+    samples around OP's turning point. For a level the valve sets the PV's slope, so both
+    inputs are integrated. This is the "PV changes faster than the loop's own dynamics allow
+    for the OP move" of methods §4.10, read with the dynamics the data allow.
+
+    The spans are fitted side by side, ``SPAN_BATCH_SAMPLES`` at a time: a window tests a
+    dozen spans of 30-90 samples, whose fits one at a time cost their array calls' overhead
+    rather than their arithmetic (1 ms of a 3,600-sample window's 10-ms budget)."""
+    out = np.empty((len(spans), 2))
+    lo = 0
+    while lo < len(spans):
+        hi, samples = lo + 1, spans[lo].end - spans[lo].start + 1
+        while hi < len(spans) and samples + spans[hi].end - spans[hi].start < SPAN_BATCH_SAMPLES:
+            samples += spans[hi].end - spans[hi].start + 1
+            hi += 1
+        out[lo:hi] = _slip_batch(spans[lo:hi], dyn, integrating)
+        lo = hi
+    return out
+
+
+def _slip_batch(spans: list[_SlipSpan], dyn: _Dynamics, integrating: bool) -> FloatArray:
+    """``_slip_evidence`` of a batch: every span's samples side by side (``first``: where each
+    begins), each span's sums read with ``np.add.reduceat``, and ``_best_fits``' closed form
+    per span."""
+    s, a, b = (np.array([sp[i] for sp in spans], dtype=np.int64) for i in (1, 2, 3))
+    n = b - s + 1
+    first = np.concatenate(([0], np.cumsum(n)[:-1]))
+    seg = np.repeat(np.arange(len(spans)), n)
+    k = np.arange(int(n.sum())) - first[seg]  # each sample's place in its span
+    y = np.concatenate([sp.pv[sp.start : sp.end + 1] for sp in spans])
+    regs = np.empty((dyn.n_linear + _SLIP_STEPS * len(LAG_GRID), y.size))
+    lin, steps = regs[: dyn.n_linear], regs[dyn.n_linear :]
+    np.take(dyn.op_lags, dyn.linear_at[:, None] + (s[seg] + k), out=lin, mode="clip")
+    # a valve step a few samples around the turn (8 before to 2 after, every second), through
+    # each lag: samples since each step, -1 before it, never past the rise's end
+    offsets = (a - s - 8)[seg] + 2 * np.arange(_SLIP_STEPS)[:, None]
+    since = np.maximum(k - offsets, -1)
+    at = (since[:, None, :] + 1 + dyn.rise_at[None, :, None]).reshape(-1, y.size)
+    np.take(dyn.rise_from_zero, at, out=steps, mode="clip")
+    if integrating:
+        for lo, m in zip(first.tolist(), n.tolist(), strict=True):
+            part = lin[:, lo : lo + m]
+            part[:] = np.cumsum(part - part.mean(axis=1, keepdims=True), axis=1)
+            steps[:, lo : lo + m] = np.cumsum(steps[:, lo : lo + m], axis=1)
+    signs = np.stack([dyn.slip_signs[sp.toward] for sp in spans], axis=1)
+    return _best_fits(y, regs, signs, dyn.n_linear, first, n)
+
+
+def _best_fits(
+    y: FloatArray,
+    regressors: FloatArray,
+    signs: FloatArray,
+    split: int,
+    first: IntArray,
+    n: IntArray,
+) -> FloatArray:
+    """Smallest residual sums of squares of y ≈ c0 + c1·t + c2·r over the candidate
+    regressors r of two models (rows of ``regressors`` before and from ``split``), with
+    c2·sign >= 0 (else c2 = 0), on each of several spans side by side: span ``i`` is samples
+    [first[i], first[i] + n[i]) of ``y`` and of every row of ``regressors`` (overwritten);
+    ``signs`` is (rows × spans), 0 for a coefficient of either sign. One row per span:
+    (first model, second model).
+
+    Frisch–Waugh: with each span's straight line taken out of y, each candidate needs one
+    slope only, and the line's share of a regressor comes from its sum and its product with
+    the time axis (no detrended copy of the regressors); every span and regressor is fitted
+    in the same few array passes. Each row is taken relative to its span's first value, so
+    that a level of 50 % does not swamp a variation of a tenth of a percent."""
+    seg = np.repeat(np.arange(n.size), n)
+    t = np.arange(y.size) - first[seg] - 0.5 * (n[seg] - 1)  # each span's centred time
+    tt = n * (n * n - 1) / 12.0  # its sum of squares (exact: half-integers squared)
+    tt = np.where(tt > 0, tt, 1.0)
+    centred = y - np.repeat(np.add.reduceat(y, first) / n, n)
+    r0 = centred - np.repeat(np.add.reduceat(centred * t, first) / tt, n) * t  # y less its line
+    # each row relative to its span's first value, in place; the products in one buffer (the
+    # regressors are a megabyte: a fresh array per product costs more than the product)
+    rel = regressors
+    rel -= np.repeat(rel[:, first], n, axis=1)
+    buf = np.empty_like(rel)
+    s1 = np.add.reduceat(rel, first, axis=1)
+    st = np.add.reduceat(np.multiply(rel, t, out=buf), first, axis=1)
+    py = np.add.reduceat(np.multiply(rel, r0, out=buf), first, axis=1)
+    ss = np.add.reduceat(np.square(rel, out=buf), first, axis=1) - s1 * s1 / n - st * st / tt
+    pos = ss > 0
+    gain = np.where(pos & ((py * signs > 0) | (signs == 0)), py * py / np.where(pos, ss, 1.0), 0.0)
+    total = np.add.reduceat(r0 * r0, first)
+    return np.column_stack((total - gain[:split].max(axis=0), total - gain[split:].max(axis=0)))
 
 
 def _moves_after(
@@ -560,7 +614,10 @@ def _moves_after(
     # samples since each origin: from 0 (origins <= lo) to below the window's length
     since = np.arange(n)[None, :] + lo - origins[:, None]
     regressors = dyn.regressors(lo, n, since, integrating)
-    sse_follow, sse_stuck = _best_fits(y, regressors, dyn.after_signs, dyn.n_linear)
+    fits = _best_fits(
+        y, regressors, dyn.after_signs[:, None], dyn.n_linear, np.array([0]), np.array([n])
+    )
+    sse_follow, sse_stuck = (float(v) for v in fits[0])
     return (
         sse_stuck >= p.after_ratio * sse_follow
         and (sse_stuck - sse_follow) / sig.noise_var >= p.after_chi2
@@ -801,8 +858,22 @@ def detect_stick_slip(
         p.evidence_ratio_smooth_fitted,
     )
     gain = None if integrating or not ranked else process_gain(pv, op, gain_sign)
-    for k, ((ev, ratio, rate, follow, kick), b) in ranked:
-        if gain and abs(ev.pv_jump) > p.slip_gain_ratio * abs(gain) * ev.op_travel:
+    # the two-model test, on the largest slips first, until enough events confirm the valve
+    # (the verdict needs ``strong_needed``): every test it may need fitted in one go
+    tested = max(p.max_model_candidates, 3 * strong_needed)
+    tests = {
+        i: _span_tests(cand, b, bounds, n, op_travel_total, (raw, raw_ramp, smoothed), p)
+        for i, (k, (cand, b)) in enumerate(ranked)
+        if k < tested and not (gain and _too_large(cand[0], gain, p))
+    }
+    spans = [span for each in tests.values() for span, _ in each]
+    fits = iter(_slip_evidence(spans, dyn, integrating).tolist() if spans else [])
+    confirmed = {
+        i: any([_confirms(next(fits), sp.end - sp.start + 1, r, p) for sp, r in each])
+        for i, each in tests.items()
+    }
+    for i, (_, ((ev, ratio, rate, follow, kick), _)) in enumerate(ranked):
+        if gain and _too_large(ev, gain, p):
             continue
         fast = (
             ratio >= p.stick_slip_ratio
@@ -811,30 +882,7 @@ def detect_stick_slip(
             and kick <= p.kick_fraction
             and abs(ev.pv_jump) >= p.fast_slip_sigma * sig.sigma_y
         )
-        strong = False
-        # the two-model test until one event confirms the valve (the verdict needs one),
-        # on the largest slips first
-        if sum(e.strong for e in events) < strong_needed and k < max(
-            p.max_model_candidates, 3 * strong_needed
-        ):
-            toward = 1.0 if ev.pv_jump > 0 else -1.0
-            j = int(np.searchsorted(bounds, ev.breakaway))
-            # the stuck phase may have begun before OP's previous turn (a set-point kick or
-            # noise turns OP without moving the valve): read the evidence from there as well
-            starts = (ev.start, int(bounds[max(j - 2, 0)]))
-            # a clean stuck phase: the slip's whole response as well (``full_slip_follow``)
-            clean = follow <= p.full_slip_follow and rate >= p.slip_rate_ratio
-            ends = (b, _slip_end(ev.start, ev.breakaway, n, p)) if clean else (b,)
-            share = ev.op_travel / op_travel_total
-            readings = [raw_ramp if share >= p.ramp_share else raw]
-            if share >= p.smooth_share:
-                readings.append(smoothed)
-            spans = dict.fromkeys((st, e) for e in ends for st in starts)
-            for (start, end), r in itertools.product(spans, readings):
-                sse = _slip_evidence(r.pv, dyn, start, ev.breakaway, end, toward, integrating)
-                if _confirms(sse, end - start + 1, r, p):
-                    strong = True
-                    break
+        strong = sum(e.strong for e in events) < strong_needed and confirmed.get(i, False)
         if strong and kick > p.step_kick_fraction and _near_step(ev, sp_steps, p.jump_horizon):
             strong = False
         if (strong or fast) and _moves_after(ev, pv, sig, dyn, sp_steps, integrating, p):
@@ -860,7 +908,7 @@ class _Reading(NamedTuple):
     ratio_fitted: float
 
 
-def _confirms(sse: tuple[float, float], n: int, r: _Reading, p: StickSlipParams) -> bool:
+def _confirms(sse: Sequence[float], n: int, r: _Reading, p: StickSlipParams) -> bool:
     """The two-model test's verdict on the residual sums of squares (linear, stick-slip) over
     ``n`` samples: the stick-slip model leaves at most 1/ratio of the linear one's residual
     (``ratio_fitted`` where it fits to the noise, ``fitted_noise``) and removes
@@ -870,6 +918,46 @@ def _confirms(sse: tuple[float, float], n: int, r: _Reading, p: StickSlipParams)
     ratio_needed = r.ratio_fitted if fitted else r.ratio
     chi2_needed = p.evidence_chi2_fitted if fitted else p.evidence_chi2
     return sse_lin >= ratio_needed * sse_slip and (sse_lin - sse_slip) / r.noise_var >= chi2_needed
+
+
+def _too_large(ev: StickSlipEvent, gain: float, p: StickSlipParams) -> bool:
+    """A PV jump larger than ``slip_gain_ratio`` × the process gain × the OP travel that
+    built it up: more than the valve's slip can explain."""
+    return abs(ev.pv_jump) > p.slip_gain_ratio * abs(gain) * ev.op_travel
+
+
+def _span_tests(
+    cand: tuple[StickSlipEvent, float, float, float, float],
+    b: int,
+    bounds: IntArray,
+    n: int,
+    op_travel_total: float,
+    readings: tuple[_Reading, _Reading, _Reading],
+    p: StickSlipParams,
+) -> list[tuple[_SlipSpan, _Reading]]:
+    """The spans and readings the two-model test reads for one candidate (``_candidates``'
+    tuple, its slip read up to ``b``; ``bounds``: OP's turning points with the window's ends;
+    ``n``: the window's samples): any of them confirms the event. ``readings``: the PV itself
+    with the usual ratios and with a ramp's, and the averaged PV."""
+    ev, _, rate, follow, _ = cand
+    raw, raw_ramp, smoothed = readings
+    toward = 1.0 if ev.pv_jump > 0 else -1.0
+    j = int(np.searchsorted(bounds, ev.breakaway))
+    # the stuck phase may have begun before OP's previous turn (a set-point kick or noise
+    # turns OP without moving the valve): read the evidence from there as well
+    starts = (ev.start, int(bounds[max(j - 2, 0)]))
+    # a clean stuck phase: the slip's whole response as well (``full_slip_follow``)
+    clean = follow <= p.full_slip_follow and rate >= p.slip_rate_ratio
+    ends = (b, _slip_end(ev.start, ev.breakaway, n, p)) if clean else (b,)
+    share = ev.op_travel / op_travel_total
+    chosen = [raw_ramp if share >= p.ramp_share else raw]
+    if share >= p.smooth_share:
+        chosen.append(smoothed)
+    spans = dict.fromkeys((st, e) for e in ends for st in starts)
+    return [
+        (_SlipSpan(r.pv, start, ev.breakaway, end, toward), r)
+        for (start, end), r in itertools.product(spans, chosen)
+    ]
 
 
 def _distinct(events: list[StickSlipEvent], margin: int) -> list[StickSlipEvent]:

@@ -467,25 +467,62 @@ def test_a_clear_slip_in_noise_is_confirmed_by_the_model() -> None:
 
 def test_best_fits_are_the_least_squares_fits() -> None:
     """The closed form (line taken out through sums, one slope per regressor, sign-bounded)
-    equals an explicit least-squares fit of constant, line and regressor."""
+    equals an explicit least-squares fit of constant, line and regressor, on each of two
+    spans fitted side by side (each with its own line and signs)."""
     from plantcheck.diagnosis.stick_slip import _best_fits
 
     rng = np.random.default_rng(3)
-    n = 150
-    y = np.cumsum(rng.normal(size=n)) * 0.1 + 50.0
-    regs = 50.0 + np.cumsum(rng.normal(size=(12, n)), axis=1) * 0.1
-    signs = np.where(np.arange(12) % 3 == 0, -1.0, 1.0)
-    t = np.arange(n, dtype=np.float64)
-    expected = []
-    for r, sign in zip(regs, signs, strict=True):
-        a = np.column_stack([np.ones(n), t, r])
-        coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-        if coef[2] * sign <= 0:  # the slope of the wrong sign is refused: line only
-            coef, *_ = np.linalg.lstsq(a[:, :2], y, rcond=None)
-            a = a[:, :2]
-        expected.append(float(np.sum((y - a @ coef) ** 2)))
-    got = _best_fits(y, regs, signs, 5)
-    assert got == pytest.approx((min(expected[:5]), min(expected[5:])), rel=1e-9)
+    lengths = (150, 61)
+    ys, regs, expected = [], [], []
+    signs = np.stack(
+        [np.where(np.arange(12) % 3 == 0, -1.0, 1.0), np.where(np.arange(12) % 4 == 0, 0.0, 1.0)],
+        axis=1,
+    )
+    for span, n in enumerate(lengths):
+        y = np.cumsum(rng.normal(size=n)) * 0.1 + 50.0
+        r_all = 50.0 + np.cumsum(rng.normal(size=(12, n)), axis=1) * 0.1
+        t = np.arange(n, dtype=np.float64)
+        sse = []
+        for r, sign in zip(r_all, signs[:, span], strict=True):
+            a = np.column_stack([np.ones(n), t, r])
+            coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+            if coef[2] * sign < 0:  # the slope of the wrong sign is refused: line only
+                coef, *_ = np.linalg.lstsq(a[:, :2], y, rcond=None)
+                a = a[:, :2]
+            sse.append(float(np.sum((y - a @ coef) ** 2)))
+        ys.append(y)
+        regs.append(r_all)
+        expected.append((min(sse[:5]), min(sse[5:])))
+    got = _best_fits(
+        np.concatenate(ys), np.concatenate(regs, axis=1), signs, 5, np.array([0, 150]),
+        np.array(lengths),
+    )  # fmt: skip
+    assert got.shape == (2, 2)
+    for row, want in zip(got.tolist(), expected, strict=True):
+        assert row == pytest.approx(want, rel=1e-9)
+
+
+def test_the_two_model_test_fits_its_spans_in_batches_as_one_at_a_time() -> None:
+    """Spans beyond ``SPAN_BATCH_SAMPLES`` go to another batch: the residuals are those of
+    each span fitted alone, for a flow loop and for a level (integrated inputs)."""
+    from plantcheck.diagnosis import stick_slip
+
+    rng = np.random.default_rng(5)
+    op = 50.0 + np.cumsum(rng.normal(0.0, 0.2, 2000))
+    pv = 0.5 * op + rng.normal(0.0, 0.1, op.size)
+    spans = [
+        stick_slip._SlipSpan(pv, s, s + 40, s + 60 + s % 37, 1.0 if s % 2 else -1.0)
+        for s in range(20, 1800, 97)
+    ]
+    for integrating in (False, True):
+        dyn = stick_slip._Dynamics.of(op)
+        together = stick_slip._slip_evidence(spans, dyn, integrating)
+        alone = np.vstack([stick_slip._slip_evidence([sp], dyn, integrating) for sp in spans])
+        np.testing.assert_allclose(together, alone, rtol=1e-9)
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(stick_slip, "SPAN_BATCH_SAMPLES", 200)
+            batched = stick_slip._slip_evidence(spans, dyn, integrating)
+        np.testing.assert_allclose(batched, alone, rtol=1e-9)
 
 
 def test_the_linear_model_keeps_to_the_process_dynamics_it_is_given() -> None:
