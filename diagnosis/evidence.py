@@ -22,8 +22,11 @@ from plantcheck.diagnosis.signal_tools import (
     noise_sigma,
 )
 
-EVIDENCE_VERSION = 8
+EVIDENCE_VERSION = 9
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn.
+Version 9: the two-model test of the stick-slip events reads residuals below a billionth of
+the PV's level a sample as rounding (``stick_slip.ROUNDING_LEVEL``): noise-free records'
+events no longer rest on the order of a sum.
 Version 8: the corpus gathers what a diagnosis weighs (the stiction tests wherever a period
 was found, the oscillation test on windows the window checks decided); until then it skipped
 them, and 4 windows in 10 were weighed on inputs the fit had not seen present for them."""

@@ -472,6 +472,13 @@ class _SlipSpan(NamedTuple):
     toward: float
 
 
+ROUNDING_LEVEL = 1e-9
+"""Where the two-model test reads rounding rather than a fit: a residual below this share of
+the PV's level per sample, a regressor whose variance about its straight line is below this
+share of its spread: far below any recorded signal's precision, far above float64's (1e-16),
+and far above what the sums of the closed form lose to cancellation. Without it a noise-free
+record's verdict rested on the order of a sum."""
+
 SPAN_BATCH_SAMPLES = 20_000
 """Samples of the two-model test's spans fitted side by side in one batch (its regressors:
 about 12 MB)."""
@@ -545,7 +552,8 @@ def _best_fits(
     c2·sign >= 0 (else c2 = 0), on each of several spans side by side: span ``i`` is samples
     [first[i], first[i] + n[i]) of ``y`` and of every row of ``regressors`` (overwritten);
     ``signs`` is (rows × spans), 0 for a coefficient of either sign. One row per span:
-    (first model, second model).
+    (first model, second model), each at least n·(``ROUNDING_LEVEL`` × the span's largest
+    |y|)²; a regressor straight to within ``ROUNDING_LEVEL`` over a span adds nothing there.
 
     Frisch–Waugh: with each span's straight line taken out of y, each candidate needs one
     slope only, and the line's share of a regressor comes from its sum and its product with
@@ -566,11 +574,18 @@ def _best_fits(
     s1 = np.add.reduceat(rel, first, axis=1)
     st = np.add.reduceat(np.multiply(rel, t, out=buf), first, axis=1)
     py = np.add.reduceat(np.multiply(rel, r0, out=buf), first, axis=1)
-    ss = np.add.reduceat(np.square(rel, out=buf), first, axis=1) - s1 * s1 / n - st * st / tt
-    pos = ss > 0
+    sq = np.add.reduceat(np.square(rel, out=buf), first, axis=1)
+    ss = sq - s1 * s1 / n - st * st / tt
+    # a regressor straight to within rounding (OP ramping through a lag) has nothing beyond
+    # the line: its ss is the sums' cancellation, and a slope over it would be noise
+    pos = ss > ROUNDING_LEVEL * sq
     gain = np.where(pos & ((py * signs > 0) | (signs == 0)), py * py / np.where(pos, ss, 1.0), 0.0)
     total = np.add.reduceat(r0 * r0, first)
-    return np.column_stack((total - gain[:split].max(axis=0), total - gain[split:].max(axis=0)))
+    # a residual below a billionth of the PV's level a sample is the sums' rounding, not a fit
+    # (a noise-free, interpolated record: both models then leave 1e-25, either sign)
+    floor = n * (ROUNDING_LEVEL * np.maximum.reduceat(np.abs(y), first)) ** 2
+    sse = (total - gain[:split].max(axis=0), total - gain[split:].max(axis=0))
+    return np.column_stack([np.maximum(part, floor) for part in sse])
 
 
 def _moves_after(

@@ -11,7 +11,12 @@ import pytest
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.diagnosis.cause_model import decide, shipped_cause_model
 from plantcheck.diagnosis.chain import SHAPE_EVIDENCE, chain_evidence, chain_shape_input
-from plantcheck.diagnosis.evidence import FEATURE_NAMES, FEATURES, evidence_vector
+from plantcheck.diagnosis.evidence import (
+    EVIDENCE_VERSION,
+    FEATURE_NAMES,
+    FEATURES,
+    evidence_vector,
+)
 from plantcheck.simulator.cases import simc_pi
 from plantcheck.simulator.corpus import CLASSES, FAMILIES, draw_case
 from plantcheck.simulator.loop import Disturbance, LoopConfig, Process, simulate_loop
@@ -44,6 +49,8 @@ def test_the_shipped_model_reads_every_input_and_adds_up() -> None:
     model = shipped_cause_model()
     assert model is not None, "diagnosis/models/cause_model.npz is missing: plantcheck model fit"
     assert model.features == FEATURE_NAMES and model.classes == CLASSES
+    # fitted on the evidence this chain gathers: a version raised without a refit fails here
+    assert model.meta["evidence_version"] == EVIDENCE_VERSION, "refit: plantcheck model fit"
     assert 0.2 < model.temperature < 5.0
     rng = np.random.default_rng(0)
     for _ in range(5):
