@@ -424,20 +424,24 @@ class _Dynamics:
         return cls(first_order_lags(padded, poles), delays, rise, linear_at, rise_at, slip,
                    signs(_AFTER_STEPS, 0.0))  # fmt: skip
 
-    def regressors(self, lo: int, n: int, since: IntArray, integrating: bool) -> FloatArray:
-        """The two models' regressors on samples [lo, lo + n), one row each: the linear
-        model's (OP delayed by each dead time, through each lag), then each valve step's
-        response through each lag (steps × lags; row j of ``since``: samples since step j,
-        −1 before it). For a level, whose valve sets the PV's slope, both are integrated."""
-        k = np.arange(n)
-        out = np.empty((self.n_linear + since.shape[0] * len(LAG_GRID), n))
+    def regressors(
+        self, at: IntArray, since: IntArray, first: IntArray, n: IntArray, integrating: bool
+    ) -> FloatArray:
+        """The two models' regressors on the window's samples ``at``, spans side by side (span
+        ``i``: columns [first[i], first[i] + n[i])), one row each: the linear model's (OP
+        delayed by each dead time, through each lag), then each valve step's response through
+        each lag (steps × lags; row j of ``since``: samples since step j, −1 before it). For a
+        level, whose valve sets the PV's slope, both are integrated over each span."""
+        out = np.empty((self.n_linear + since.shape[0] * len(LAG_GRID), at.size))
         lin, steps = out[: self.n_linear], out[self.n_linear :]
-        np.take(self.op_lags, self.linear_at[:, None] + (lo + k), out=lin, mode="clip")
-        at = (since[:, None, :] + 1 + self.rise_at[None, :, None]).reshape(-1, n)
-        np.take(self.rise_from_zero, at, out=steps, mode="clip")
+        np.take(self.op_lags, self.linear_at[:, None] + at, out=lin, mode="clip")
+        rows = (since[:, None, :] + 1 + self.rise_at[None, :, None]).reshape(-1, at.size)
+        np.take(self.rise_from_zero, rows, out=steps, mode="clip")
         if integrating:
-            lin[:] = np.cumsum(lin - lin.mean(axis=1, keepdims=True), axis=1)
-            steps[:] = np.cumsum(steps, axis=1)
+            for lo, m in zip(first.tolist(), n.tolist(), strict=True):
+                part = lin[:, lo : lo + m]
+                part[:] = np.cumsum(part - part.mean(axis=1, keepdims=True), axis=1)
+                steps[:, lo : lo + m] = np.cumsum(steps[:, lo : lo + m], axis=1)
         return out
 
 
@@ -521,20 +525,11 @@ def _slip_batch(spans: list[_SlipSpan], dyn: _Dynamics, integrating: bool) -> Fl
     seg = np.repeat(np.arange(len(spans)), n)
     k = np.arange(int(n.sum())) - first[seg]  # each sample's place in its span
     y = np.concatenate([sp.pv[sp.start : sp.end + 1] for sp in spans])
-    regs = np.empty((dyn.n_linear + _SLIP_STEPS * len(LAG_GRID), y.size))
-    lin, steps = regs[: dyn.n_linear], regs[dyn.n_linear :]
-    np.take(dyn.op_lags, dyn.linear_at[:, None] + (s[seg] + k), out=lin, mode="clip")
     # a valve step a few samples around the turn (8 before to 2 after, every second), through
     # each lag: samples since each step, -1 before it, never past the rise's end
     offsets = (a - s - 8)[seg] + 2 * np.arange(_SLIP_STEPS)[:, None]
     since = np.maximum(k - offsets, -1)
-    at = (since[:, None, :] + 1 + dyn.rise_at[None, :, None]).reshape(-1, y.size)
-    np.take(dyn.rise_from_zero, at, out=steps, mode="clip")
-    if integrating:
-        for lo, m in zip(first.tolist(), n.tolist(), strict=True):
-            part = lin[:, lo : lo + m]
-            part[:] = np.cumsum(part - part.mean(axis=1, keepdims=True), axis=1)
-            steps[:, lo : lo + m] = np.cumsum(steps[:, lo : lo + m], axis=1)
+    regs = dyn.regressors(s[seg] + k, since, first, n, integrating)
     signs = np.stack([dyn.slip_signs[sp.toward] for sp in spans], axis=1)
     return _best_fits(y, regs, signs, dyn.n_linear, first, n)
 
@@ -628,10 +623,9 @@ def _moves_after(
     origins = np.asarray([ev.breakaway, lo - 6, lo - 4, lo - 2, lo])
     # samples since each origin: from 0 (origins <= lo) to below the window's length
     since = np.arange(n)[None, :] + lo - origins[:, None]
-    regressors = dyn.regressors(lo, n, since, integrating)
-    fits = _best_fits(
-        y, regressors, dyn.after_signs[:, None], dyn.n_linear, np.array([0]), np.array([n])
-    )
+    first, length = np.array([0]), np.array([n])
+    regressors = dyn.regressors(lo + np.arange(n), since, first, length, integrating)
+    fits = _best_fits(y, regressors, dyn.after_signs[:, None], dyn.n_linear, first, length)
     sse_follow, sse_stuck = (float(v) for v in fits[0])
     return (
         sse_stuck >= p.after_ratio * sse_follow
@@ -876,19 +870,21 @@ def detect_stick_slip(
     # the two-model test, on the largest slips first, until enough events confirm the valve
     # (the verdict needs ``strong_needed``): every test it may need fitted in one go
     tested = max(p.max_model_candidates, 3 * strong_needed)
+    too_large = [_too_large(c[0][0], gain, p) for _, c in ranked]
     tests = {
         i: _span_tests(cand, b, bounds, n, op_travel_total, (raw, raw_ramp, smoothed), p)
         for i, (k, (cand, b)) in enumerate(ranked)
-        if k < tested and not (gain and _too_large(cand[0], gain, p))
+        if k < tested and not too_large[i]
     }
     spans = [span for each in tests.values() for span, _ in each]
     fits = iter(_slip_evidence(spans, dyn, integrating).tolist() if spans else [])
+    # every fit read in turn (a list, not a generator, so that ``any`` takes them all)
     confirmed = {
         i: any([_confirms(next(fits), sp.end - sp.start + 1, r, p) for sp, r in each])
         for i, each in tests.items()
     }
     for i, (_, ((ev, ratio, rate, follow, kick), _)) in enumerate(ranked):
-        if gain and _too_large(ev, gain, p):
+        if too_large[i]:
             continue
         fast = (
             ratio >= p.stick_slip_ratio
@@ -935,9 +931,11 @@ def _confirms(sse: Sequence[float], n: int, r: _Reading, p: StickSlipParams) -> 
     return sse_lin >= ratio_needed * sse_slip and (sse_lin - sse_slip) / r.noise_var >= chi2_needed
 
 
-def _too_large(ev: StickSlipEvent, gain: float, p: StickSlipParams) -> bool:
+def _too_large(ev: StickSlipEvent, gain: float | None, p: StickSlipParams) -> bool:
     """A PV jump larger than ``slip_gain_ratio`` × the process gain × the OP travel that
-    built it up: more than the valve's slip can explain."""
+    built it up: more than the valve's slip can explain (never, where no gain was read)."""
+    if not gain:
+        return False
     return abs(ev.pv_jump) > p.slip_gain_ratio * abs(gain) * ev.op_travel
 
 
