@@ -45,9 +45,10 @@ class _Walk:
     3,600 trees' steps to another part of a 10 MB array; in the chain, whose other arrays have
     pushed the model out of the processor's caches, that made the walk 1.4 ms instead of the
     0.4 it takes alone; 0.7-0.8 ms in this order (``benchmarks/diagnosis_speed.py --stages``).
-    Where a missing input goes is decided once per node; a node's
-    contribution cell (class × input) is its tree's class and input; ``base`` is each class's
-    sum of its trees' root values, the same for every input."""
+    Where a missing input goes is decided once per node; each step's contribution (Saabas
+    2014: the value gained from parent to child, credited to the parent's class × input) is
+    laid out at the child, so the walk reads it with the indices it already holds; ``base``
+    is each class's sum of its trees' root values, the same for every input."""
 
     threshold: FloatArray
     reads: IndexArray
@@ -55,8 +56,13 @@ class _Walk:
     a missing value where the node does (LightGBM decides that once per node)."""
     children: IndexArray
     """(2, slots): the slot a node goes to when it goes right (row 0) or left (row 1)."""
-    cell: IndexArray
     value: FloatArray
+    step_cell: IndexArray
+    """The contribution cell (class × input) of the step into each slot: its parent's tree
+    class and input (a root's is 0, never read)."""
+    step_gain: FloatArray
+    """The value gained on the step into each slot: its value less its parent's (0 at a
+    root), as the walk subtracted it before."""
     roots: IndexArray
     base: FloatArray
 
@@ -96,14 +102,24 @@ def _walk_layout(model: CauseModel) -> _Walk:
     missing_left = np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left)[slot]
     if not np.all(np.isfinite(model.threshold[~leaf])):
         raise ValueError("a tree splits at an infinite threshold: the walk reads NaN as ±inf")
+    value = model.value[slot]
+    cell = model.tree_class[tree_of][slot] * n_feat + feature
+    # each slot's parent: the slot whose right or left child it is (a carried leaf's copy is
+    # both children of its leaf)
+    parent = np.zeros(slot.size, dtype=np.int64)
+    above = np.arange(starts[-2])
+    parent[right[: above.size]] = above
+    parent[left[: above.size]] = above
+    is_root = np.arange(slot.size) < starts[1]
     # indices in 32 bits: the layout is a tenth of a process' memory, and the walk reads them
     # as fast as 64-bit ones
     return _Walk(
         threshold=model.threshold[slot],
         reads=(missing_left * n_feat + feature).astype(np.int32),
         children=np.stack([right, left]).astype(np.int32),
-        cell=(model.tree_class[tree_of][slot] * n_feat + feature).astype(np.int32),
-        value=model.value[slot],
+        value=value,
+        step_cell=np.where(is_root, 0, cell[parent]).astype(np.int32),
+        step_gain=np.where(is_root, 0.0, value - value[parent]),
         roots=np.arange(model.roots.size, dtype=np.int32),
         base=np.bincount(
             model.tree_class, weights=model.value[model.roots], minlength=len(model.classes)
@@ -256,16 +272,15 @@ def decide(model: CauseModel, x: FloatArray, shape: ShapeInput | None = None) ->
     w = model.walk
     inputs = w.inputs(x)
     idx = w.roots
-    path = [idx]
+    path = []
     for _ in range(model.depth - 1):
         go_left = inputs[w.reads[idx]] <= w.threshold[idx]
         idx = w.children[go_left.view(np.uint8), idx]
         path.append(idx)
-    visited = np.concatenate(path)
-    came, went = visited[: -idx.size], visited[idx.size :]
-    steps = w.value[went] - w.value[came]
+    went = np.concatenate(path) if path else idx[:0]
     contrib = np.asarray(
-        np.bincount(w.cell[came], weights=steps, minlength=n_cls * n_feat), dtype=np.float64
+        np.bincount(w.step_cell[went], weights=w.step_gain[went], minlength=n_cls * n_feat),
+        dtype=np.float64,
     ).reshape(n_cls, n_feat)
     raw = np.bincount(model.tree_class, weights=w.value[idx], minlength=n_cls).astype(np.float64)
     p = calibrated(raw, model.temperature)

@@ -836,14 +836,14 @@ def detect_stick_slip(
     bounds = np.concatenate(([0], turns, [n - 1])).astype(np.int64)
     # breakaways at OP's turns, then at the PV's jumps that no turn explains: each source,
     # largest slips first, has its own share of the two-model tests
-    found = _candidates(_stuck_phases(bounds, sig, p), sig, p)
+    stuck = _stuck_phases(bounds, sig, p)
+    jumped = _jump_phases(bounds, sig, gain_sign, p) if p.jump_candidates else []
+    found, from_jumps = _candidates(stuck + jumped, sig, p, len(stuck))
     ranked = list(enumerate(found))
     if p.jump_candidates:
         seen = [(c[0].breakaway - p.jump_horizon, c[0].end) for c, _ in found]
         jumps = [
-            cb
-            for cb in _candidates(_jump_phases(bounds, sig, gain_sign, p), sig, p)
-            if not any(lo <= cb[0][0].breakaway <= hi for lo, hi in seen)
+            cb for cb in from_jumps if not any(lo <= cb[0][0].breakaway <= hi for lo, hi in seen)
         ]
         # a jump no turn explains is rarer than a turn: fewer model tests for them
         spare = p.max_model_candidates - p.max_jump_model_candidates
@@ -983,18 +983,28 @@ def _distinct(events: list[StickSlipEvent], margin: int) -> list[StickSlipEvent]
     return sorted(kept, key=lambda e: e.breakaway)
 
 
+_Candidate = tuple[tuple[StickSlipEvent, float, float, float, float], int]
+"""A stuck phase's event with its slow-fast ratio, slip rate, follow and kick shares, and the
+last sample its slip is read to (``_candidates``)."""
+
+
 def _candidates(
-    phases: list[tuple[int, int, int, float, float]], sig: _Signals, p: StickSlipParams
-) -> list[tuple[tuple[StickSlipEvent, float, float, float, float], int]]:
+    phases: list[tuple[int, int, int, float, float]],
+    sig: _Signals,
+    p: StickSlipParams,
+    split: int,
+) -> tuple[list[_Candidate], list[_Candidate]]:
     """The stuck phases [s, a], each ending at OP's turning point ``a``, whose slip on [a, b]
     clears the noise checks; with the slow-fast ratio, slip rate against the stuck drift, PV
-    follow share and OP kick share (see ``StickSlipParams``), and ``b``; largest slips first.
+    follow share and OP kick share (see ``StickSlipParams``), and ``b``; largest slips first,
+    those of ``phases[:split]`` (OP's turns) apart from the rest (the PV's jumps).
 
     Every phase at once: the slips' samples side by side, each slip's maximum and the first
     samples past half and 90 % of it read per segment (a day's window has dozens of phases,
-    each a dozen small array calls when taken one by one)."""
+    each a dozen small array calls when taken one by one; both sources in one go, as each
+    phase is read on its own)."""
     if not phases:
-        return []
+        return [], []
     s, a, b = (np.array([ph[i] for ph in phases], dtype=np.int64) for i in range(3))
     toward = np.array([ph[3] for ph in phases])
     travel = np.array([ph[4] for ph in phases])
@@ -1022,17 +1032,19 @@ def _candidates(
         kick = np.abs(sig.ops[a] - sig.ops[np.maximum(s, a - np.maximum(2, t_half))]) / travel
     # the slip ends where the PV has made 90 % of its move (it may creep on after)
     end = a + np.maximum(1, first_past(0.9))
-    found = [
-        ((StickSlipEvent(si, ai, ei, tr, tw * sz, strong=False), ra, rt, fo, ki), bi)
-        for si, ai, bi, ei, tr, tw, sz, ra, rt, fo, ki in zip(
-            *(
-                v[ok].tolist()
-                for v in (s, a, b, end, travel, toward, size, ratio, rate, follow, kick)
-            ),
-            strict=True,
-        )
-    ]
-    found.sort(key=lambda cb: -abs(cb[0][0].pv_jump))
+    source = np.arange(s.size) < split
+    found: tuple[list[_Candidate], list[_Candidate]] = ([], [])
+    for si, ai, bi, ei, tr, tw, sz, ra, rt, fo, ki, turn in zip(
+        *(
+            v[ok].tolist()
+            for v in (s, a, b, end, travel, toward, size, ratio, rate, follow, kick, source)
+        ),
+        strict=True,
+    ):
+        event = StickSlipEvent(si, ai, ei, tr, tw * sz, strong=False)
+        found[0 if turn else 1].append(((event, ra, rt, fo, ki), bi))
+    for each in found:
+        each.sort(key=lambda cb: -abs(cb[0][0].pv_jump))
     return found
 
 

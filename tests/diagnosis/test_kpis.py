@@ -15,6 +15,32 @@ def test_play_ignores_moves_within_its_band() -> None:
     assert play(x, 0.1).tolist() == pytest.approx([50.0, 50.0, 50.0, 50.15, 50.15, 50.45, 49.05])
 
 
+def _play_by_sample(x: np.ndarray, width: float) -> list[float]:
+    """The operator's definition, one sample at a time."""
+    y, out = float(x[0]), []
+    for v in x.tolist():
+        if v > y + width / 2:
+            y = v - width / 2
+        elif v < y - width / 2:
+            y = v + width / 2
+        out.append(y)
+    return out
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 64, 1000, 3601])
+@pytest.mark.parametrize("width", [0.0, 0.1, 2.0])
+def test_play_is_its_definition_to_the_bit(n: int, width: float) -> None:
+    """The prefix scan gives what the sample-by-sample operator gives, exactly: on a random
+    walk, on white noise about a level, and on a quantised signal that sits on its steps."""
+    rng = np.random.default_rng(n)
+    for x in (
+        50.0 + np.cumsum(rng.normal(0.0, 0.2, n)),
+        50.0 + rng.normal(0.0, 0.1, n),
+        np.round(50.0 + np.cumsum(rng.normal(0.0, 0.05, n)), 1),
+    ):
+        assert play(x, width).tolist() == _play_by_sample(x, width)
+
+
 @pytest.mark.parametrize("ts", [0.1, 1.0, 7.5])
 @pytest.mark.parametrize("cycles", [1, 3, 10])
 def test_travel_and_reversals_of_a_triangle_wave(ts: float, cycles: int) -> None:

@@ -14,6 +14,7 @@ from plantcheck.diagnosis.signal_tools import (
     first_peaks,
     half_cycles,
     hann,
+    hysteresis_sign,
     log_grid,
     noise_sigma,
     percentile,
@@ -39,6 +40,27 @@ def test_fft_ccf_odd_for_quarter_period_shift() -> None:
     lags, c = fft_ccf(u, y, 60)
     assert abs(c[lags == 0][0]) < 0.05
     assert c[lags == -25][0] > 0.9 or c[lags == 25][0] > 0.9
+
+
+def test_hysteresis_sign_is_its_definition() -> None:
+    """Sample by sample: the sign changes only outside the band, in-band samples keep the
+    last sign, leading ones take the first decided; +1 throughout when none is decided."""
+    rng = np.random.default_rng(3)
+    for x, band in (
+        (np.sin(np.arange(500) / 9.0) + rng.normal(0.0, 0.3, 500), 0.5),
+        (rng.normal(0.0, 0.1, 50), 0.15),
+        (np.full(20, 0.1), 0.5),
+        (np.array([0.0, 0.0, -1.0, 0.2, 1.0, np.nan, -0.1]), 0.5),
+    ):
+        expected, last = [], 0
+        for v in x.tolist():
+            last = 1 if v > band else -1 if v < -band else last
+            expected.append(last)
+        first = next((v for v in expected if v != 0), 1)
+        expected = [v if v != 0 else first for v in expected]
+        got = hysteresis_sign(x, band)
+        assert got.dtype == np.int8
+        assert got.tolist() == expected
 
 
 def test_zero_crossings_with_hysteresis_ignore_noise() -> None:
