@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plantcheck.diagnosis.signal_tools import FloatArray, detrend
+from plantcheck.diagnosis.signal_tools import FloatArray, detrend, std
 
 DEGRADED_RATIO = 3.0
 """The error's σ at least this many times its baseline is a loop far from its own normal
@@ -34,7 +34,7 @@ class Baseline:
 
 def _detrended_sd(x: FloatArray) -> float:
     x = x[np.isfinite(x)]
-    return float(np.std(detrend(x))) if x.size >= 3 else math.nan
+    return std(detrend(x)) if x.size >= 3 else math.nan
 
 
 def variability(

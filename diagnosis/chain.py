@@ -66,7 +66,14 @@ from plantcheck.diagnosis.shape_tests import (
     significant_half_cycles,
 )
 from plantcheck.diagnosis.signal_shape import ShapeInput, shape_input
-from plantcheck.diagnosis.signal_tools import FloatArray, detrend, moving_average, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    detrend,
+    mean,
+    moving_average,
+    noise_sigma,
+    std,
+)
 from plantcheck.diagnosis.step_response import (
     StepResponse,
     all_creep,
@@ -173,7 +180,7 @@ def run_stiction_tests(
     es = moving_average(detrend(e), width)
     sigma_e = noise_sigma(e) if error_noise is None else error_noise
     band = params.oscillation.noise_band * sigma_e / np.sqrt(width)
-    min_amp = 0.3 * np.sqrt(2.0) * float(np.std(es))
+    min_amp = 0.3 * np.sqrt(2.0) * std(es)
     hc_e = significant_half_cycles(es, ts, band, min_amp, params.shape.min_half_samples)
     if "relay" in names:
         out["relay"] = relay_index(hc_e, params.shape)
@@ -181,9 +188,9 @@ def run_stiction_tests(
         sig = pv if integrating else op
         # OP carries the proportional kick of the PV noise: smooth over a tenth of the period
         ss = moving_average(detrend(sig), max(1, round(period / ts / 10.0)))
-        amp = 0.3 * float(np.mean(np.abs(ss))) * np.sqrt(2.0)
+        amp = 0.3 * mean(np.abs(ss)) * np.sqrt(2.0)
         hc_s = significant_half_cycles(
-            ss, ts, 0.1 * float(np.std(ss)), amp, params.shape.curvefit_min_half_samples
+            ss, ts, 0.1 * std(ss), amp, params.shape.curvefit_min_half_samples
         )
         shape = (
             replace(params.shape, curvefit_yes=params.shape.curvefit_yes_integrating)
@@ -1215,43 +1222,50 @@ def diagnose_advanced(
     loop-level pass only checks the window, finds the oscillation and splits its cause.
     """
     p = params or default_chain_params()
-    std = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True,
+    standard = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True,
                     baseline=baseline)  # fmt: skip
-    std.chain = "advanced"
-    if std.cause in WINDOW_VERDICTS:
-        std.notes.append("valve not assessed: the window cannot be judged")
-        return std.freeze()
+    standard.chain = "advanced"
+    if standard.cause in WINDOW_VERDICTS:
+        standard.notes.append("valve not assessed: the window cannot be judged")
+        return standard.freeze()
     op_f, _ = fill_short_gaps(np.asarray(op, dtype=np.float64), p.window.max_fill_gap)
     mv_arr = np.asarray(mv, dtype=np.float64)
     if float(np.mean(~np.isfinite(mv_arr))) > p.window.max_missing_fraction:
-        std.notes.append("MV has too many gaps: valve not assessed, standard chain verdict kept")
-        return std.freeze()
+        standard.notes.append(
+            "MV has too many gaps: valve not assessed, standard chain verdict kept"
+        )
+        return standard.freeze()
     mv_f, _ = fill_short_gaps(mv_arr, p.window.max_fill_gap)
     stem = travel(mv_f, ts, p.kpis.deadband)
-    if stem is not None and std.kpis is not None:
-        std.kpis["mv_travel_per_day"] = round(stem.travel_per_day, 1)
-        std.kpis["mv_reversals_per_day"] = round(stem.reversals_per_day, 1)
+    if stem is not None and standard.kpis is not None:
+        standard.kpis["mv_travel_per_day"] = round(stem.travel_per_day, 1)
+        standard.kpis["mv_reversals_per_day"] = round(stem.reversals_per_day, 1)
     va = classify_valve(op_f, mv_f, ts, p.valve)
-    std.valve = {"state": va.state if va.state != "data_quality" else "unknown", "kpis": va.kpis}
-    std.notes.extend(va.reasons)
+    standard.valve = {
+        "state": va.state if va.state != "data_quality" else "unknown",
+        "kpis": va.kpis,
+    }
+    standard.notes.extend(va.reasons)
     if va.state == "data_quality":
-        std.notes.append("MV unusable (flat while OP moves): check the position feedback")
-        return std.freeze()
+        standard.notes.append("MV unusable (flat while OP moves): check the position feedback")
+        return standard.freeze()
     if va.state != "ok":
-        std.cause = va.state
-        std.confidence = 0.8
-        std.tuning = valve_first(va.state).json
-        std.stiction["detected"] = va.state == "stiction"
+        standard.cause = va.state
+        standard.confidence = 0.8
+        standard.tuning = valve_first(va.state).json
+        standard.stiction["detected"] = va.state == "stiction"
         if va.state in ("stiction", "deadband_backlash"):
-            std.stiction["S"] = va.S
-            std.stiction["J"] = va.J
-            std.stiction["source"] = "mv"
-            if quantify and std.oscillation is not None:
+            standard.stiction["S"] = va.S
+            standard.stiction["J"] = va.J
+            standard.stiction["source"] = "mv"
+            if quantify and standard.oscillation is not None:
                 # the OP/PV-only estimate beside the measured one (methods §7.4 step 4)
                 pv_f, _ = fill_short_gaps(np.asarray(pv, dtype=np.float64), p.window.max_fill_gap)
-                q = _quantify_recent(std, op_f, pv_f, ts, std.oscillation["period_s"], p)
-                std.stiction["op_pv_estimate"] = {"S": q.S, "J": q.J, "reliable": q.reliable}
-        std.actions = [action_for(std.cause, std.stiction.get("S"), std.stiction.get("J"))]
-        return std.freeze()
-    std.stiction["detected"] = False
-    return std.freeze()
+                q = _quantify_recent(standard, op_f, pv_f, ts, standard.oscillation["period_s"], p)
+                standard.stiction["op_pv_estimate"] = {"S": q.S, "J": q.J, "reliable": q.reliable}
+        standard.actions = [
+            action_for(standard.cause, standard.stiction.get("S"), standard.stiction.get("J"))
+        ]
+        return standard.freeze()
+    standard.stiction["detected"] = False
+    return standard.freeze()

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from plantcheck.diagnosis.baseline import variability
-from plantcheck.diagnosis.signal_tools import FloatArray
+from plantcheck.diagnosis.signal_tools import FloatArray, std
 
 DAY_S = 86_400.0
 
@@ -147,7 +147,7 @@ def window_kpis(
     p = params or KpiParams()
     e = np.asarray(sp, dtype=np.float64) - np.asarray(pv, dtype=np.float64)
     finite = e[np.isfinite(e)]
-    err_std = float(np.std(finite)) if finite.size else None
+    err_std = std(finite) if finite.size else None
     harris = None
     note = dead_time_source if dead_time_s is None else ""
     if dead_time_s is not None:

@@ -24,6 +24,7 @@ from plantcheck.diagnosis.signal_tools import (
     first_peaks,
     fit_error_to_templates,
     half_cycles,
+    mean,
     unit_grid,
 )
 from plantcheck.diagnosis.stiction_verdict import StictionTestResult, three_way
@@ -101,7 +102,7 @@ def significant_half_cycles(
     x: FloatArray, ts: float, band: float, min_amplitude: float, min_samples: int = 5
 ) -> HalfCycles:
     """Half-cycles of mean-removed ``x`` whose peak exceeds ``min_amplitude`` (signal units)."""
-    hc = half_cycles(x - x.mean(), ts, band=band, min_samples=min_samples, n_points=N_POINTS)
+    hc = half_cycles(x - mean(x), ts, band=band, min_samples=min_samples, n_points=N_POINTS)
     keep = hc.peak >= min_amplitude
     return HalfCycles(hc.shapes[keep], hc.starts[keep], hc.stops[keep], hc.iae[keep], hc.peak[keep])
 
@@ -143,7 +144,7 @@ def area_ratio(
     p = params or ShapeParams()
     if hc.count < p.min_half_cycles:
         return StictionTestResult("area_ratio", None, "undecided", f"{hc.count} half-cycles")
-    ax = np.abs(x - x.mean())
+    ax = np.abs(x - mean(x))
     csum = np.concatenate(([0.0], np.cumsum(ax)))
     a, b = hc.starts, hc.stops
     k = first_peaks(ax, a, b)

@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import noise_sigma
+from plantcheck.diagnosis.signal_tools import mean, noise_sigma, std
 from plantcheck.diagnosis.stiction_vote import is_integrating
 
 FloatArray = NDArray[np.float64]
@@ -76,15 +76,15 @@ def shape_input(
     The channels are stored as float16 in the fit's cache, so they pass through float16 here
     too: the network reads the same numbers in the fit and in a diagnosis."""
     e = sp - pv
-    se = float(np.std(e)) + 1e-12
-    so = float(np.std(op)) + 1e-12
+    se = std(e) + 1e-12
+    so = std(op) + 1e-12
     ne = max(noise_sigma(e) if error_noise is None else error_noise, 1e-9)
     no = max(noise_sigma(op) if op_noise is None else op_noise, 1e-9)
     chans = np.stack(
         [
             _resampled(e, SHAPE_SAMPLES) / se,
-            _resampled(op - op.mean(), SHAPE_SAMPLES) / so,
-            _resampled(sp - sp.mean(), SHAPE_SAMPLES) / se,
+            _resampled(op - mean(op), SHAPE_SAMPLES) / so,
+            _resampled(sp - mean(sp), SHAPE_SAMPLES) / se,
         ]
     )
     chans = np.clip(chans, -SHAPE_CLIP, SHAPE_CLIP).astype(np.float16).astype(np.float64)
@@ -94,7 +94,7 @@ def shape_input(
             np.log10(se / ne),
             np.log10(so),
             np.log10(so / no),
-            float(np.mean(e)) / se,
+            mean(e) / se,
             1.0 if is_integrating(loop_type) else 0.0,
             float(np.mean(np.abs(op - op.max()) < 1e-9)),
             float(np.mean(np.abs(op - op.min()) < 1e-9)),

@@ -19,9 +19,11 @@ from plantcheck.diagnosis.acf_regularity import thornhill_regularity
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     bandpass,
+    mean,
     median,
     moving_average,
     noise_sigma,
+    std,
 )
 
 
@@ -56,7 +58,7 @@ _RANKED_PEAKS = 32
 def periodogram(x: FloatArray) -> FloatArray:
     """|FFT|² of mean-removed ``x`` at ``np.fft.rfftfreq(x.size)``, squared units of ``x``:
     the spectrum every oscillation stage reads (computed once per signal and handed on)."""
-    return np.abs(np.fft.rfft(x - x.mean())) ** 2
+    return np.abs(np.fft.rfft(x - mean(x))) ** 2
 
 
 def _peak_ratios(smooth: FloatArray, cand: np.ndarray) -> FloatArray:
@@ -201,7 +203,7 @@ def _test_peak(
         ),
     )
     why = next((why for ok, why in checks if not ok), "")
-    amplitude = float(np.std(xf) * math.sqrt(2.0))
+    amplitude = std(xf) * math.sqrt(2.0)
     return SpectralPeak(period, amplitude, r, share, ratio, cycles, why)
 
 

@@ -50,6 +50,7 @@ from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     IntArray,
     first_order_lags,
+    mean,
     median,
     moving_average,
     noise_sigma,
@@ -738,7 +739,7 @@ class _Signals:
     def of(
         cls, ys: FloatArray, ops: FloatArray, e: FloatArray, w: int, noise: tuple[float, ...]
     ) -> _Signals:
-        yc = ys - float(np.mean(ys))  # sums of squares without cancellation
+        yc = ys - mean(ys)  # sums of squares without cancellation
         k = np.arange(ys.size, dtype=np.float64)
         # the four running sums in one pass, each from 0 before the first sample
         runs = np.zeros((4, ys.size + 1))

@@ -16,10 +16,12 @@ from plantcheck.diagnosis.signal_tools import (
     hann,
     hysteresis_sign,
     log_grid,
+    mean,
     noise_sigma,
     percentile,
     round_significant,
     sorted_unique,
+    std,
     unit_grid,
     zero_crossings,
 )
@@ -175,3 +177,20 @@ def test_sorted_unique_and_unit_grid_are_numpys() -> None:
         assert np.array_equal(sorted_unique(x), np.unique(x))
     assert np.array_equal(unit_grid(32), np.linspace(0.0, 1.0, 32))
     assert not unit_grid(32).flags.writeable
+
+
+def test_mean_and_std_are_numpys_to_the_bit() -> None:
+    """The chain's mean and σ are numpy's values exactly, on any length, scale and stride, and
+    hand other arrays (integers, 2-D, empty) to numpy."""
+    rng = np.random.default_rng(7)
+    for k in range(400):
+        n = int(rng.integers(1, 9000))
+        x = rng.normal(size=n) * 10.0 ** rng.uniform(-8, 8) + rng.uniform(-1e4, 1e4)
+        if k % 3 == 0:
+            x = x[::3]
+        assert mean(x) == float(np.mean(x))
+        assert std(x) == float(np.std(x))
+    ints = np.arange(10)
+    assert mean(ints) == 4.5 and std(ints) == float(np.std(ints))
+    grid = np.arange(6.0).reshape(2, 3)
+    assert mean(grid) == 2.5 and std(grid) == float(np.std(grid))
