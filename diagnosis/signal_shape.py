@@ -13,9 +13,9 @@ PyTorch by ``plantcheck model fit`` (``service.shape_model_fit``) and evaluated 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 from numpy.typing import NDArray
 
 from plantcheck.diagnosis.signal_tools import mean, noise_sigma, std
@@ -159,11 +159,7 @@ def shape_log_probabilities(net: ShapeNet, x: ShapeInput) -> FloatArray:
     h = x.channels
     for w, b in zip(net.conv_w, net.conv_b, strict=True):
         out_ch, in_ch, k = w.shape
-        # each output point's k inputs side by side, (in × k, points): one matrix product per
-        # layer; the zero padding is the extra column every index outside the input reads
-        padded = np.concatenate((h, np.zeros((in_ch, 1))), axis=1)
-        cols = padded[:, _taps(h.shape[1], k)].reshape(in_ch * k, -1)
-        h = np.maximum(w.reshape(out_ch, in_ch * k) @ cols + b[:, None], 0.0)
+        h = np.maximum(w.reshape(out_ch, in_ch * k) @ _columns(h, k) + b[:, None], 0.0)
     z = np.concatenate(
         [
             h.mean(axis=1),
@@ -180,12 +176,18 @@ def shape_log_probabilities(net: ShapeNet, x: ShapeInput) -> FloatArray:
     return out
 
 
-@lru_cache(maxsize=16)
-def _taps(length: int, k: int) -> NDArray[np.int64]:
-    """(k, points): the input index each tap of a stride-2 convolution with zero padding of
-    k // 2 reads at each output point; ``length`` (the zero column) outside the input."""
-    points = (length + 2 * (k // 2) - k) // 2 + 1
-    at = 2 * np.arange(points)[None, :] + np.arange(k)[:, None] - k // 2
-    at[(at < 0) | (at >= length)] = length
-    at.flags.writeable = False
-    return at
+def _columns(h: FloatArray, k: int) -> FloatArray:
+    """(in × k, points): each output point's ``k`` inputs side by side, for a stride-2
+    convolution of the channels ``h`` (in, length) with zero padding of k // 2 (as PyTorch's
+    ``Conv1d(stride=2, padding=k // 2)``): one matrix product per layer. A strided view of the
+    padded channels, copied once by the reshape: a third of an index gather's time."""
+    in_ch, length = h.shape
+    pad = k // 2
+    points = (length + 2 * pad - k) // 2 + 1
+    padded = np.zeros((in_ch, length + 2 * pad))
+    padded[:, pad : pad + length] = h
+    along, across = padded.strides
+    # tap j of point i reads padded[:, 2i + j]: never past the padded end (2(points − 1) + k
+    # <= length + 2·pad by the definition of points)
+    taps = as_strided(padded, (in_ch, k, points), (along, across, 2 * across), writeable=False)
+    return np.asarray(taps.reshape(in_ch * k, points), dtype=np.float64)
