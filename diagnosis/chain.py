@@ -1222,8 +1222,9 @@ def diagnose_advanced(
     loop-level pass only checks the window, finds the oscillation and splits its cause.
     """
     p = params or default_chain_params()
-    standard = _standard(pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True,
-                    baseline=baseline)  # fmt: skip
+    standard = _standard(
+        pv, op, ts, sp, auto, loop_type, p, quantify=False, exclude_stiction=True, baseline=baseline
+    )
     standard.chain = "advanced"
     if standard.cause in WINDOW_VERDICTS:
         standard.notes.append("valve not assessed: the window cannot be judged")

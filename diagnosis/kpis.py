@@ -44,8 +44,9 @@ class KpiParams:
 
 
 def play(x: FloatArray, width: float) -> FloatArray:
-    """The play (backlash) operator: the output follows ``x`` only once it has moved ``width``
-    away, staying ``width`` / 2 behind it; moves within the band leave it where it is.
+    """The play (backlash) operator: the output follows ``x`` (finite: ``travel`` drops NaN
+    first) only once it has moved ``width`` away, staying ``width`` / 2 behind it; moves within
+    the band leave it where it is.
 
     Each sample maps the output before it to clamp(y, x − width/2, x + width/2), and clamps
     compose into clamps (Krasnosel'skii & Pokrovskii 1989 build hysteresis from such maps), so
