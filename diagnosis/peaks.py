@@ -60,6 +60,10 @@ def local_maxima(x: FloatArray) -> IntArray:
     x = np.asarray(x, dtype=np.float64)
     if x.size < 3:
         return np.zeros(0, dtype=np.int64)
+    inner = x[1:-1]
+    if not np.any(x[1:] == x[:-1]):
+        # no flat run: a peak is a sample above both neighbours (a third of the runs' time)
+        return np.flatnonzero((inner > x[:-2]) & (inner > x[2:])) + 1
     r = _runs(x)
     return r.middles(_top_runs(r.level))
 
@@ -178,14 +182,46 @@ def peaks_apart(x: FloatArray, height: float, distance: int) -> IntArray:
     x = np.asarray(x, dtype=np.float64)
     peaks = local_maxima(x)
     peaks = peaks[height <= x[peaks]]
+    return np.asarray(peaks[_apart(x, peaks, distance, None)], dtype=np.int64)
+
+
+def highest_peaks_apart(x: FloatArray, height: float, distance: int, count: int) -> IntArray:
+    """The ``count`` highest of ``peaks_apart(x, height, distance)``, highest first (equal
+    heights in time order). The distance rule takes the peaks highest first and a kept peak
+    only removes lower ones, so it stops once ``count`` are kept and the next is lower than
+    them all: the stick-slip search asks for a dozen among the hundred or more peaks of a
+    noisy hour, and took 80 µs for all of them."""
+    x = np.asarray(x, dtype=np.float64)
+    peaks = local_maxima(x)
+    peaks = peaks[height <= x[peaks]]
+    kept = peaks[_apart(x, peaks, distance, count)]
+    return np.asarray(kept[np.argsort(-x[kept], kind="stable")][:count], dtype=np.int64)
+
+
+def _apart(x: FloatArray, peaks: IntArray, distance: int, count: int | None) -> NDArray[np.bool_]:
+    """Which of ``peaks`` (positions in order) SciPy's distance rule keeps: highest first
+    (ties in numpy's default argsort order, reversed, as SciPy), each kept peak removing the
+    others within ``distance`` samples. With ``count``, the peaks lower than the ``count``
+    highest kept are left undecided (False): none of them can be among those."""
+    keep = np.ones(peaks.size, dtype=bool)
     if peaks.size < 2 or distance <= 1:
-        return peaks
+        return keep
     at = peaks.tolist()
-    keep = [True] * len(at)
-    # SciPy's order: highest first, ties in numpy's default argsort order
-    for j in np.argsort(x[peaks])[::-1].tolist():
-        if not keep[j]:
+    heights = x[peaks]
+    level = heights.tolist()
+    flags = [True] * len(at)
+    kept: list[float] = []  # the kept peaks' heights, highest first
+    order = np.argsort(heights)[::-1].tolist()
+    undecided: list[int] = []
+    for rank, j in enumerate(order):
+        if count is not None and len(kept) >= count and level[j] < kept[count - 1]:
+            undecided = order[rank:]
+            break
+        if not flags[j]:
             continue
+        kept.append(level[j])
         for k in range(bisect_left(at, at[j] - distance + 1), bisect_left(at, at[j] + distance)):
-            keep[k] = k == j
-    return np.asarray(peaks[np.asarray(keep)], dtype=np.int64)
+            flags[k] = k == j
+    out = np.asarray(flags, dtype=bool)
+    out[undecided] = False
+    return out

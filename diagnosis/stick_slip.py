@@ -45,7 +45,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from plantcheck.diagnosis.peaks import peaks_apart, prominent_extremes
+from plantcheck.diagnosis.peaks import highest_peaks_apart, prominent_extremes
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     IntArray,
@@ -697,9 +697,8 @@ def _jump_phases(
     toward = np.sign(sig.cum_e[k + 1] - sig.cum_e[lo])
     move = toward * (sig.ys[h:] - sig.ys[:-h])
     floor = max(p.slip_sigma * sig.sigma_y, p.slip_resolution * sig.res)
-    peaks = peaks_apart(move, floor, h)
     out = []
-    largest = peaks[np.argsort(-move[peaks], kind="stable")][: 2 * p.max_model_candidates]
+    largest = highest_peaks_apart(move, floor, h, 2 * p.max_model_candidates)
     for a in largest.tolist():
         j = int(np.searchsorted(bounds, a - p.min_stuck_samples, side="right")) - 1
         s = int(bounds[max(j, 0)])

@@ -9,6 +9,7 @@ import pytest
 from scipy.signal import find_peaks, peak_prominences
 
 from plantcheck.diagnosis.peaks import (
+    highest_peaks_apart,
     local_maxima,
     peaks_apart,
     prominences,
@@ -56,6 +57,18 @@ def test_peaks_apart_equal_scipy(height: float) -> None:
         distance = int(rng.integers(1, 50))
         expected = find_peaks(x, height=height, distance=distance)[0]
         assert np.array_equal(peaks_apart(x, height, distance), expected)
+
+
+@pytest.mark.parametrize("count", [1, 3, 12, 1000])
+def test_highest_peaks_apart_are_the_highest_of_scipys(count: int) -> None:
+    """The ``count`` highest of SciPy's peaks, highest first and equal heights in time order
+    (quantised signals have many), however early the distance rule stops."""
+    rng = np.random.default_rng(4)
+    for x in _signals(4, 200):
+        distance = int(rng.integers(1, 50))
+        expected = find_peaks(x, height=0.0, distance=distance)[0]
+        expected = expected[np.argsort(-x[expected], kind="stable")][:count]
+        assert np.array_equal(highest_peaks_apart(x, 0.0, distance, count), expected)
 
 
 def test_short_and_flat_signals_have_no_peaks() -> None:
