@@ -192,6 +192,8 @@ def highest_peaks_apart(x: FloatArray, height: float, distance: int, count: int)
     them all: the stick-slip search asks for a dozen among the hundred or more peaks of a
     noisy hour, and took 80 µs for all of them."""
     x = np.asarray(x, dtype=np.float64)
+    if count <= 0:
+        return np.zeros(0, dtype=np.int64)
     peaks = local_maxima(x)
     peaks = peaks[height <= x[peaks]]
     kept = peaks[_apart(x, peaks, distance, count)]

@@ -69,6 +69,7 @@ def test_highest_peaks_apart_are_the_highest_of_scipys(count: int) -> None:
         expected = find_peaks(x, height=0.0, distance=distance)[0]
         expected = expected[np.argsort(-x[expected], kind="stable")][:count]
         assert np.array_equal(highest_peaks_apart(x, 0.0, distance, count), expected)
+    assert highest_peaks_apart(_signals(4, 1)[0], 0.0, 5, 0).size == 0
 
 
 def test_short_and_flat_signals_have_no_peaks() -> None:
