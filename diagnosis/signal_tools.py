@@ -127,6 +127,7 @@ def mean(x: FloatArray) -> float:
     numpy sums, over its size) without the wrapper's dispatch and checks: half its 4 µs on a
     window-long signal, and the chain takes about a hundred means a window. Any other array
     goes to ``numpy.mean``."""
+    x = np.asarray(x)
     if x.dtype != np.float64 or x.ndim != 1 or x.size == 0:
         return float(np.mean(x))
     return float(np.add.reduce(x) / x.size)
@@ -137,6 +138,7 @@ def std(x: FloatArray) -> float:
     steps as numpy's (the mean, the squared deviations in place, their sum over the size, the
     square root) in half its 11 µs on a window-long signal. Any other array goes to
     ``numpy.std``."""
+    x = np.asarray(x)
     if x.dtype != np.float64 or x.ndim != 1 or x.size == 0:
         return float(np.std(x))
     d = x - np.add.reduce(x) / x.size

@@ -192,5 +192,6 @@ def test_mean_and_std_are_numpys_to_the_bit() -> None:
         assert std(x) == float(np.std(x))
     ints = np.arange(10)
     assert mean(ints) == 4.5 and std(ints) == float(np.std(ints))
+    assert mean([1.0, 2.0]) == 1.5 and std([1.0, 3.0]) == 1.0  # type: ignore[arg-type]
     grid = np.arange(6.0).reshape(2, 3)
     assert mean(grid) == 2.5 and std(grid) == float(np.std(grid))
