@@ -34,6 +34,7 @@ from plantcheck.diagnosis.controller_change import (
 )
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import (
+    ErrorSpectrum,
     correlation_evidence,
     evidence_vector,
     process_evidence,
@@ -1001,6 +1002,9 @@ def _evidence(run: _Run) -> dict[str, float | None]:
                 ev["period_over_ti"] = osc.period_s / st.pi.ti_s
         if osc.amplitude is not None and osc.noise_sigma > 0:
             ev["amplitude_noise"] = osc.amplitude / osc.noise_sigma
+    e = win.sp - win.pv
+    # the error's spectrum, read by both when the analysed stretch is the whole window
+    error = ErrorSpectrum.of(detrend(e)) if e.size >= 8 else None
     if st is not None and st.b - st.a > 8:
         pi = st.pi if st.pi.fit >= run.p.tuning.pi_min_fit else None
         ti = pi.ti_s / run.ts if pi is not None and pi.ti_s else None
@@ -1011,12 +1015,13 @@ def _evidence(run: _Run) -> dict[str, float | None]:
                 win.sp[st.a : st.b],
                 pi.kc if pi is not None else None,
                 ti,
+                error if (st.a, st.b) == (0, e.size) else None,
             )
         )
     whole = run.pi_window
     ti_whole = whole.ti_s / run.ts if whole is not None and whole.ti_s else None
-    ev.update(spectral_evidence(win.sp - win.pv, ti_whole))
-    ev.update(correlation_evidence(win.sp - win.pv, win.op))
+    ev.update(spectral_evidence(e, ti_whole))
+    ev.update(correlation_evidence(e, win.op, error))
     proc = quick_process_fit(win.pv, win.op, integrating=integrating)
     if proc is not None:
         pi_ok = whole if whole is not None and whole.fit >= run.p.tuning.pi_min_fit else None

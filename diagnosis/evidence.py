@@ -10,14 +10,16 @@ model learns what its absence means.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+from numpy.typing import NDArray
 
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
     detrend,
     fast_fft_length,
-    fft_acf,
     hann_power,
     mean,
     noise_sigma,
@@ -190,22 +192,57 @@ def _first_below(r: FloatArray, level: float) -> int:
     return int(below[0]) + 1 if below.size else int(r.size) + 1
 
 
-def _acf_time(x: FloatArray) -> float | None:
-    """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never."""
-    if x.size < 8 or not np.any(x - mean(x)):
+@dataclass(frozen=True)
+class ErrorSpectrum:
+    """A detrended signal less its mean and its FFT zero-padded to ``nfft`` (at least twice
+    its length, so that the autocorrelation below is the linear one): what the error's
+    correlation time (``shape_evidence``) and its correlation shapes (``correlation_evidence``)
+    are read from. Built once when both read the same samples, the analysed stretch being the
+    whole window (an FFT pair, 50 µs of a 3,600-sample window)."""
+
+    centred: FloatArray
+    spectrum: NDArray[np.complex128]
+    nfft: int
+
+    @classmethod
+    def of(cls, detrended: FloatArray) -> ErrorSpectrum:
+        """From a detrended signal (``signal_tools.detrend``)."""
+        centred = detrended - mean(detrended)
+        nfft = fast_fft_length(2 * centred.size)
+        return cls(centred, np.fft.rfft(centred, nfft), nfft)
+
+    @cached_property
+    def autocovariance(self) -> FloatArray:
+        """Σ x(t)·x(t+k) at lags k = 0 .. nfft − 1 (those past the length are 0)."""
+        s = self.spectrum
+        return np.asarray(np.fft.irfft(s.real**2 + s.imag**2, self.nfft), dtype=np.float64)
+
+
+def _acf_time(x: ErrorSpectrum) -> float | None:
+    """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never (what
+    ``fft_acf`` over every lag gives, from the spectrum)."""
+    n = x.centred.size
+    if n < 8 or not np.any(x.centred):
         return None
-    acf = fft_acf(x, max_lag=x.size)
+    cov = x.autocovariance[:n]
+    acf = cov / cov[0] if cov[0] > 0 else np.zeros(n)
     lag = _first_below(acf[1:], 1.0 / math.e)
     return float(lag) if lag < acf.size else None
 
 
 def shape_evidence(
-    pv: FloatArray, op: FloatArray, sp: FloatArray, kc: float | None, ti_samples: float | None
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray,
+    kc: float | None,
+    ti_samples: float | None,
+    error: ErrorSpectrum | None = None,
 ) -> dict[str, float | None]:
     """Distribution and increment statistics of the analysed stretch: the error's and OP's
     kurtosis (Choudhury et al. 2004 read non-Gaussianity as non-linearity), PV's largest jump
     against its increments, how OP's and PV's increments go together, the proportional
-    share of OP's moves and the error's correlation time against the integral time."""
+    share of OP's moves and the error's correlation time against the integral time
+    (``error``: the detrended SP − PV's spectrum, where the caller has it)."""
     ed, opd = detrend(sp - pv), detrend(op)
     dpv, dop = np.diff(pv), np.diff(op)
     sd_dpv, sd_dop = std(dpv), std(dop)
@@ -215,7 +252,7 @@ def shape_evidence(
         if sd_dpv > 0 and sd_dop > 0
         else None
     )
-    tau = _acf_time(ed)
+    tau = _acf_time(ErrorSpectrum.of(ed) if error is None else error)
     return {
         "error_kurtosis": _kurtosis(ed),
         "error_skew": _skew(ed),
@@ -281,7 +318,9 @@ def _acf_shape(r: FloatArray, name: str) -> tuple[float, dict[str, float | None]
     return float(t), out
 
 
-def correlation_evidence(e: FloatArray, op: FloatArray) -> dict[str, float | None]:
+def correlation_evidence(
+    e: FloatArray, op: FloatArray, error: ErrorSpectrum | None = None
+) -> dict[str, float | None]:
     """How the control error and OP correlate in time, over the whole window and free of its
     time scale: each one's correlation time and the shape of its autocorrelation (the decay
     of a sluggish loop, the undershoot of a well-damped one, the cut-off of a dead-time
@@ -290,19 +329,20 @@ def correlation_evidence(e: FloatArray, op: FloatArray) -> dict[str, float | Non
     error and OP correlate most (Box & Jenkins 1970's cross-correlation, unwhitened).
 
     Autocorrelations are over lag 1's value, so measurement noise (white, all at lag 0)
-    changes the shape little. Both signals are detrended first."""
+    changes the shape little. Both signals are detrended first (``error``: the detrended
+    error's spectrum, where the caller has it)."""
     n = int(e.size)
     if n < 32:
         return {}
-    ed, od = detrend(e), detrend(op)
-    ed, od = ed - mean(ed), od - mean(od)
-    nfft = fast_fft_length(2 * n)
-    fe, fo = np.fft.rfft(ed, nfft), np.fft.rfft(od, nfft)
+    err = ErrorSpectrum.of(detrend(e)) if error is None else error
+    out_op = ErrorSpectrum.of(detrend(op))
+    ed, od, nfft = err.centred, out_op.centred, err.nfft
+    fe, fo = err.spectrum, out_op.spectrum
     see, soo = float(ed @ ed), float(od @ od)
     if see <= 0 or soo <= 0:
         return {}
-    acf_e = np.fft.irfft(fe.real**2 + fe.imag**2, nfft)[: n // 2] / see
-    acf_o = np.fft.irfft(fo.real**2 + fo.imag**2, nfft)[: n // 2] / soo
+    acf_e = err.autocovariance[: n // 2] / see
+    acf_o = out_op.autocovariance[: n // 2] / soo
     out: dict[str, float | None] = {"error_lag1": float(acf_e[1])}
     if acf_e[1] <= 0 or acf_o[1] <= 0:
         return out

@@ -313,3 +313,29 @@ def test_process_evidence_reads_the_controller_against_simc() -> None:
     blind = process_evidence(0.0, 20.0, 3.5, -0.2, 1.0, 20.0, False)
     assert "kc_over_simc" not in blind and blind["process_fit"] == -0.2
     assert set(at) <= set(FEATURES)
+
+
+def test_the_error_spectrum_read_once_gives_what_each_reads_alone() -> None:
+    """``shape_evidence`` and ``correlation_evidence`` handed the whole window's error
+    spectrum give what each computes on its own, to the bit, and the correlation time is
+    ``fft_acf``'s first lag below 1/e."""
+    from plantcheck.diagnosis.evidence import (
+        ErrorSpectrum,
+        _acf_time,
+        correlation_evidence,
+        shape_evidence,
+    )
+    from plantcheck.diagnosis.signal_tools import detrend, fft_acf
+
+    rng = np.random.default_rng(2)
+    n = 3_000
+    pv = 50.0 + np.cumsum(rng.normal(0.0, 0.1, n)) * 0.05 + rng.normal(0.0, 0.2, n)
+    op = 40.0 + np.cumsum(rng.normal(0.0, 0.2, n)) * 0.1
+    sp = np.full(n, 50.0)
+    ed = detrend(sp - pv)
+    error = ErrorSpectrum.of(ed)
+    assert shape_evidence(pv, op, sp, 2.0, 30.0, error) == shape_evidence(pv, op, sp, 2.0, 30.0)
+    assert correlation_evidence(sp - pv, op, error) == correlation_evidence(sp - pv, op)
+    acf = fft_acf(ed, max_lag=n)
+    assert _acf_time(error) == float(np.flatnonzero(acf[1:] < 1.0 / np.e)[0] + 1)
+    assert _acf_time(ErrorSpectrum.of(np.zeros(50))) is None
