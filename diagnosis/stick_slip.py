@@ -841,10 +841,13 @@ def detect_stick_slip(
     found, from_jumps = _candidates(stuck + jumped, sig, p, len(stuck))
     ranked = list(enumerate(found))
     if p.jump_candidates:
-        seen = [(c[0].breakaway - p.jump_horizon, c[0].end) for c, _ in found]
-        jumps = [
-            cb for cb in from_jumps if not any(lo <= cb[0][0].breakaway <= hi for lo, hi in seen)
-        ]
+        # a jump within a slip found from a turn (from jump_horizon before its breakaway to its
+        # end) is that slip: every jump against every slip at once
+        at = np.array([cb[0][0].breakaway for cb in from_jumps])[:, None]
+        lo = np.array([c[0].breakaway - p.jump_horizon for c, _ in found])
+        hi = np.array([c[0].end for c, _ in found])
+        explained = np.any((lo <= at) & (at <= hi), axis=1).tolist()
+        jumps = [cb for cb, known in zip(from_jumps, explained, strict=True) if not known]
         # a jump no turn explains is rarer than a turn: fewer model tests for them
         spare = p.max_model_candidates - p.max_jump_model_candidates
         ranked += [(k + spare, cb) for k, cb in enumerate(jumps)]
