@@ -34,7 +34,7 @@ from plantcheck.diagnosis.controller_change import (
 )
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import (
-    ErrorSpectrum,
+    SignalSpectrum,
     correlation_evidence,
     evidence_vector,
     process_evidence,
@@ -1004,7 +1004,7 @@ def _evidence(run: _Run) -> dict[str, float | None]:
             ev["amplitude_noise"] = osc.amplitude / osc.noise_sigma
     e = win.sp - win.pv
     # the error's spectrum, read by both when the analysed stretch is the whole window
-    error = ErrorSpectrum.of(detrend(e)) if e.size >= 8 else None
+    error = SignalSpectrum.of(detrend(e)) if e.size >= 8 else None
     if st is not None and st.b - st.a > 8:
         pi = st.pi if st.pi.fit >= run.p.tuning.pi_min_fit else None
         ti = pi.ti_s / run.ts if pi is not None and pi.ti_s else None

@@ -193,19 +193,20 @@ def _first_below(r: FloatArray, level: float) -> int:
 
 
 @dataclass(frozen=True)
-class ErrorSpectrum:
+class SignalSpectrum:
     """A detrended signal less its mean and its FFT zero-padded to ``nfft`` (at least twice
-    its length, so that the autocorrelation below is the linear one): what the error's
-    correlation time (``shape_evidence``) and its correlation shapes (``correlation_evidence``)
-    are read from. Built once when both read the same samples, the analysed stretch being the
-    whole window (an FFT pair, 50 µs of a 3,600-sample window)."""
+    its length, so that the autocorrelation below is the linear one): what the correlation
+    times and shapes of the error and OP are read from. The error's is built once when the
+    error's correlation time (``shape_evidence``) and its correlation shapes
+    (``correlation_evidence``) read the same samples, the analysed stretch being the whole
+    window (an FFT pair, 50 µs of a 3,600-sample window)."""
 
     centred: FloatArray
     spectrum: NDArray[np.complex128]
     nfft: int
 
     @classmethod
-    def of(cls, detrended: FloatArray) -> ErrorSpectrum:
+    def of(cls, detrended: FloatArray) -> SignalSpectrum:
         """From a detrended signal (``signal_tools.detrend``)."""
         centred = detrended - mean(detrended)
         nfft = fast_fft_length(2 * centred.size)
@@ -218,7 +219,7 @@ class ErrorSpectrum:
         return np.asarray(np.fft.irfft(s.real**2 + s.imag**2, self.nfft), dtype=np.float64)
 
 
-def _acf_time(x: ErrorSpectrum) -> float | None:
+def _acf_time(x: SignalSpectrum) -> float | None:
     """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never (what
     ``fft_acf`` over every lag gives, from the spectrum)."""
     n = x.centred.size
@@ -236,7 +237,7 @@ def shape_evidence(
     sp: FloatArray,
     kc: float | None,
     ti_samples: float | None,
-    error: ErrorSpectrum | None = None,
+    error: SignalSpectrum | None = None,
 ) -> dict[str, float | None]:
     """Distribution and increment statistics of the analysed stretch: the error's and OP's
     kurtosis (Choudhury et al. 2004 read non-Gaussianity as non-linearity), PV's largest jump
@@ -252,7 +253,7 @@ def shape_evidence(
         if sd_dpv > 0 and sd_dop > 0
         else None
     )
-    tau = _acf_time(ErrorSpectrum.of(ed) if error is None else error)
+    tau = _acf_time(SignalSpectrum.of(ed) if error is None else error)
     return {
         "error_kurtosis": _kurtosis(ed),
         "error_skew": _skew(ed),
@@ -319,7 +320,7 @@ def _acf_shape(r: FloatArray, name: str) -> tuple[float, dict[str, float | None]
 
 
 def correlation_evidence(
-    e: FloatArray, op: FloatArray, error: ErrorSpectrum | None = None
+    e: FloatArray, op: FloatArray, error: SignalSpectrum | None = None
 ) -> dict[str, float | None]:
     """How the control error and OP correlate in time, over the whole window and free of its
     time scale: each one's correlation time and the shape of its autocorrelation (the decay
@@ -334,8 +335,8 @@ def correlation_evidence(
     n = int(e.size)
     if n < 32:
         return {}
-    err = ErrorSpectrum.of(detrend(e)) if error is None else error
-    out_op = ErrorSpectrum.of(detrend(op))
+    err = SignalSpectrum.of(detrend(e)) if error is None else error
+    out_op = SignalSpectrum.of(detrend(op))
     ed, od, nfft = err.centred, out_op.centred, err.nfft
     fe, fo = err.spectrum, out_op.spectrum
     see, soo = float(ed @ ed), float(od @ od)

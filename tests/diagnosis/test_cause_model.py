@@ -320,7 +320,7 @@ def test_the_error_spectrum_read_once_gives_what_each_reads_alone() -> None:
     spectrum give what each computes on its own, to the bit, and the correlation time is
     ``fft_acf``'s first lag below 1/e."""
     from plantcheck.diagnosis.evidence import (
-        ErrorSpectrum,
+        SignalSpectrum,
         _acf_time,
         correlation_evidence,
         shape_evidence,
@@ -333,9 +333,9 @@ def test_the_error_spectrum_read_once_gives_what_each_reads_alone() -> None:
     op = 40.0 + np.cumsum(rng.normal(0.0, 0.2, n)) * 0.1
     sp = np.full(n, 50.0)
     ed = detrend(sp - pv)
-    error = ErrorSpectrum.of(ed)
+    error = SignalSpectrum.of(ed)
     assert shape_evidence(pv, op, sp, 2.0, 30.0, error) == shape_evidence(pv, op, sp, 2.0, 30.0)
     assert correlation_evidence(sp - pv, op, error) == correlation_evidence(sp - pv, op)
     acf = fft_acf(ed, max_lag=n)
     assert _acf_time(error) == float(np.flatnonzero(acf[1:] < 1.0 / np.e)[0] + 1)
-    assert _acf_time(ErrorSpectrum.of(np.zeros(50))) is None
+    assert _acf_time(SignalSpectrum.of(np.zeros(50))) is None
