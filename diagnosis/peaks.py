@@ -205,9 +205,8 @@ def _apart(x: FloatArray, peaks: IntArray, distance: int, count: int | None) -> 
     (ties in numpy's default argsort order, reversed, as SciPy), each kept peak removing the
     others within ``distance`` samples. With ``count``, the peaks lower than the ``count``
     highest kept are left undecided (False): none of them can be among those."""
-    keep = np.ones(peaks.size, dtype=bool)
     if peaks.size < 2 or distance <= 1:
-        return keep
+        return np.ones(peaks.size, dtype=bool)
     at = peaks.tolist()
     heights = x[peaks]
     level = heights.tolist()

@@ -934,6 +934,14 @@ def _confirms(sse: Sequence[float], n: int, r: _Reading, p: StickSlipParams) -> 
     return sse_lin >= ratio_needed * sse_slip and (sse_lin - sse_slip) / r.noise_var >= chi2_needed
 
 
+_Found = tuple[StickSlipEvent, float, float, float, float]
+"""A stuck phase's event with its slow-fast ratio, slip rate, follow and kick shares
+(``_candidates``)."""
+
+_Candidate = tuple[_Found, int]
+"""A ``_Found`` with the last sample its slip is read to."""
+
+
 def _too_large(ev: StickSlipEvent, gain: float | None, p: StickSlipParams) -> bool:
     """A PV jump larger than ``slip_gain_ratio`` × the process gain × the OP travel that
     built it up: more than the valve's slip can explain (never, where no gain was read)."""
@@ -943,7 +951,7 @@ def _too_large(ev: StickSlipEvent, gain: float | None, p: StickSlipParams) -> bo
 
 
 def _span_tests(
-    cand: tuple[StickSlipEvent, float, float, float, float],
+    cand: _Found,
     b: int,
     bounds: IntArray,
     n: int,
@@ -984,11 +992,6 @@ def _distinct(events: list[StickSlipEvent], margin: int) -> list[StickSlipEvent]
         if not any(k.breakaway - margin <= ev.breakaway <= k.end + margin for k in kept):
             kept.append(ev)
     return sorted(kept, key=lambda e: e.breakaway)
-
-
-_Candidate = tuple[tuple[StickSlipEvent, float, float, float, float], int]
-"""A stuck phase's event with its slow-fast ratio, slip rate, follow and kick shares, and the
-last sample its slip is read to (``_candidates``)."""
 
 
 def _candidates(
