@@ -34,7 +34,6 @@ from plantcheck.diagnosis.controller_change import (
 )
 from plantcheck.diagnosis.ellipse import apparent_stiction
 from plantcheck.diagnosis.evidence import (
-    SignalSpectrum,
     correlation_evidence,
     evidence_vector,
     process_evidence,
@@ -69,6 +68,7 @@ from plantcheck.diagnosis.shape_tests import (
 from plantcheck.diagnosis.signal_shape import ShapeInput, shape_input
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
+    SignalSpectrum,
     detrend,
     mean,
     moving_average,

@@ -10,16 +10,13 @@ model learns what its absence means.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
-from numpy.typing import NDArray
 
 from plantcheck.diagnosis.signal_tools import (
     FloatArray,
+    SignalSpectrum,
     detrend,
-    fast_fft_length,
     hann_power,
     mean,
     noise_sigma,
@@ -192,41 +189,12 @@ def _first_below(r: FloatArray, level: float) -> int:
     return int(below[0]) + 1 if below.size else int(r.size) + 1
 
 
-@dataclass(frozen=True)
-class SignalSpectrum:
-    """A detrended signal less its mean and its FFT zero-padded to ``nfft`` (at least twice
-    its length, so that the autocorrelation below is the linear one): what the correlation
-    times and shapes of the error and OP are read from. The error's is built once when the
-    error's correlation time (``shape_evidence``) and its correlation shapes
-    (``correlation_evidence``) read the same samples, the analysed stretch being the whole
-    window (an FFT pair, 50 µs of a 3,600-sample window)."""
-
-    centred: FloatArray
-    spectrum: NDArray[np.complex128]
-    nfft: int
-
-    @classmethod
-    def of(cls, detrended: FloatArray) -> SignalSpectrum:
-        """From a detrended signal (``signal_tools.detrend``)."""
-        centred = detrended - mean(detrended)
-        nfft = fast_fft_length(2 * centred.size)
-        return cls(centred, np.fft.rfft(centred, nfft), nfft)
-
-    @cached_property
-    def autocovariance(self) -> FloatArray:
-        """Σ x(t)·x(t+k) at lags k = 0 .. nfft − 1 (those past the length are 0)."""
-        s = self.spectrum
-        return np.asarray(np.fft.irfft(s.real**2 + s.imag**2, self.nfft), dtype=np.float64)
-
-
 def _acf_time(x: SignalSpectrum) -> float | None:
-    """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never (what
-    ``fft_acf`` over every lag gives, from the spectrum)."""
+    """First lag (samples) where the ACF of ``x`` falls below 1/e; None if never."""
     n = x.centred.size
     if n < 8 or not np.any(x.centred):
         return None
-    cov = x.autocovariance[:n]
-    acf = cov / cov[0] if cov[0] > 0 else np.zeros(n)
+    acf = x.acf(n)
     lag = _first_below(acf[1:], 1.0 / math.e)
     return float(lag) if lag < acf.size else None
 

@@ -319,13 +319,8 @@ def test_the_error_spectrum_read_once_gives_what_each_reads_alone() -> None:
     """``shape_evidence`` and ``correlation_evidence`` handed the whole window's error
     spectrum give what each computes on its own, to the bit, and the correlation time is
     ``fft_acf``'s first lag below 1/e."""
-    from plantcheck.diagnosis.evidence import (
-        SignalSpectrum,
-        _acf_time,
-        correlation_evidence,
-        shape_evidence,
-    )
-    from plantcheck.diagnosis.signal_tools import detrend, fft_acf
+    from plantcheck.diagnosis.evidence import _acf_time, correlation_evidence, shape_evidence
+    from plantcheck.diagnosis.signal_tools import SignalSpectrum, detrend, fft_acf
 
     rng = np.random.default_rng(2)
     n = 3_000
