@@ -23,6 +23,7 @@ from plantcheck.diagnosis.signal_tools import (
     first_order_recursions,
     moving_average,
     noise_sigma,
+    sorted_unique,
 )
 
 
@@ -175,8 +176,9 @@ FIT_GAIN = (0.5, 1.5)
 """A fitted response moves the PV by this share of the step (the integral action brings the
 PV to the set point); outside, a load moved it as much as the step did and the fit is not
 the step's."""
-FIT_TIME_CONSTANTS = np.unique(np.round(np.logspace(0.0, np.log10(1500.0), 40)))
-"""Closed-loop time constants the fit tries, samples."""
+FIT_TIME_CONSTANTS = sorted_unique(np.round(np.logspace(0.0, np.log10(1500.0), 40)))
+"""Closed-loop time constants the fit tries, samples (``sorted_unique``: ``np.unique``
+imports ``numpy.ma``, 6-17 ms of every CLI start)."""
 
 
 def fopdt_fit(y: FloatArray, start: int, max_dead_time: int) -> tuple[int, float, float, float]:

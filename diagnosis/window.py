@@ -15,7 +15,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray, moving_average, noise_sigma
+from plantcheck.diagnosis.signal_tools import (
+    FloatArray,
+    distinct_count,
+    moving_average,
+    noise_sigma,
+)
 
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
@@ -245,7 +250,7 @@ def _measurement(w: _Window, p: WindowParams) -> WindowReport | None:
         )
         _flat_pv_while_op_moves(w, p)
         return w.stop("data_quality")
-    w.n_levels = int(np.unique(w.pv).size)
+    w.n_levels = distinct_count(w.pv)
     unique_frac = w.n_levels / w.n
     w.indices["pv_unique_fraction"] = unique_frac
     w.quantised = unique_frac < p.quantised_unique_fraction

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from plantcheck import __version__
 from plantcheck.core.vocabulary import LoopType
 from plantcheck.service.allocator import tune_allocator
 from plantcheck.service.cli_common import fail
@@ -77,6 +76,8 @@ class LogFormat(StrEnum):
 
 def _version(value: bool) -> None:
     if value:
+        from plantcheck import __version__
+
         typer.echo(f"plantcheck {__version__}")
         raise typer.Exit(0)
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import signal
 import socket
@@ -59,6 +58,8 @@ async def _check_store(cfg: Config, hint: str) -> None:
 def _server(config: object) -> Any:
     """uvicorn's server, stopping on SIGINT/SIGTERM without re-raising the signal afterwards
     (uvicorn does), so the caller's clean-up (the demo's simulator process) still runs."""
+    import asyncio
+
     import uvicorn
 
     class _Server(uvicorn.Server):
@@ -82,6 +83,8 @@ def _server(config: object) -> Any:
 
 
 def _serve(cfg: Config, hint: str, progress: float | None, duration: float | None) -> None:
+    import asyncio
+
     import uvicorn
 
     from plantcheck.service.app import build_app
@@ -154,6 +157,8 @@ def run_cmd(
     hint = str(config) if config else ""  # the path; the fix hints add the flag
     if migrate:
         migrate_or_fail(cfg.storage.url)
+    import asyncio  # here, not at the top: `diagnose` of one record needs no event loop
+
     asyncio.run(_check_store(cfg, hint))
     _check_port(cfg.api.host, cfg.api.port, "set [api] port in the configuration or use --port")
     _serve(cfg, hint, None, None)
@@ -216,6 +221,8 @@ def worker_cmd(
             "plantcheck worker runs jobs of the PostgreSQL job queue: set [scheduler] engine = "
             '"queue" (and a postgresql+asyncpg:// [storage] url) in the configuration'
         )
+    import asyncio
+
     asyncio.run(_work(cfg, str(config) if config else "", concurrency))
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -160,6 +159,8 @@ def simulate_cmd(
 
 
 def _serve(scenario: Scenario) -> None:
+    import asyncio  # here, not at the top: `diagnose` of one record needs no event loop
+
     from plantcheck.simulator.runner import PlantRunner
 
     configure_for_command("info")

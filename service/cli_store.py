@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -144,6 +143,8 @@ def import_cmd(
         finally:
             await store.close()
 
+    import asyncio  # here, not at the top: `diagnose` of one record needs no event loop
+
     try:
         n, added = asyncio.run(run())
     except StorageError as exc:
@@ -205,6 +206,8 @@ def ingest_cmd(
             f"stored {ing.writer.stats.stored} samples; buffered {len(ing.writer.buffer)}; "
             f"dropped {ing.writer.dropped}"
         )
+
+    import asyncio
 
     try:
         asyncio.run(run())

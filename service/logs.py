@@ -12,9 +12,10 @@ import json
 import logging
 import time
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Literal
 
-import click
+if TYPE_CHECKING:
+    import click
 
 LEVELS = ("debug", "info", "warning", "error")
 QUIET_LIBRARIES = (
@@ -97,13 +98,19 @@ def configure_logging(
 
 def _current_context() -> click.Context | None:
     """The running command's context: typer 0.2x runs its own copy of click, whose context
-    stack ``click.get_current_context`` does not see (the root options were then ignored)."""
+    stack ``click.get_current_context`` does not see (the root options were then ignored).
+    The installed click is imported only when typer's copy finds no context (10 ms a start)."""
     try:
         from typer._click.globals import get_current_context
     except ImportError:  # a typer that runs the installed click
-        return click.get_current_context(silent=True)
-    ctx: Any = get_current_context(silent=True)
-    return ctx if ctx is not None else click.get_current_context(silent=True)
+        pass
+    else:
+        ctx: click.Context | None = get_current_context(silent=True)  # type: ignore[assignment]
+        if ctx is not None:
+            return ctx
+    import click
+
+    return click.get_current_context(silent=True)
 
 
 def configure_for_command(default_level: str, libraries: str = "warning") -> None:

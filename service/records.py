@@ -33,6 +33,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from plantcheck.diagnosis.signal_tools import median
+
 FloatArray = NDArray[np.float64]
 
 SIGNALS = ("sp", "pv", "op", "mv")
@@ -143,7 +145,8 @@ def _epoch_seconds(t: FloatArray, notes: list[str]) -> FloatArray:
     finite = t[np.isfinite(t)]
     if not finite.size:
         return t
-    typical = float(np.median(np.abs(finite)))
+    # numpy.median imports numpy.ma at its first call (6-17 ms of `diagnose`'s start)
+    typical = median(np.abs(finite))
     for least, divisor, unit in EPOCH_UNITS:
         if typical >= least:
             if typical / divisor >= 1e11:
@@ -358,7 +361,7 @@ def _regularise(
         ts = sample_time_s or 1.0
         return LoopRecordFile(t - t[0], signals, ts, mode, notes)
     dt = np.diff(t)
-    ts = float(sample_time_s) if sample_time_s else float(np.median(dt))
+    ts = float(sample_time_s) if sample_time_s else median(dt)
     regular = np.allclose(dt, ts, rtol=0.01, atol=1e-9)
     if regular:
         return LoopRecordFile(t - t[0], signals, ts, mode, notes)

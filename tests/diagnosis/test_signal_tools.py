@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from plantcheck.diagnosis.signal_tools import (
+    distinct_count,
     fast_fft_length,
     fft_acf,
     fft_ccf,
@@ -177,6 +178,18 @@ def test_sorted_unique_and_unit_grid_are_numpys() -> None:
         assert np.array_equal(sorted_unique(x), np.unique(x))
     assert np.array_equal(unit_grid(32), np.linspace(0.0, 1.0, 32))
     assert not unit_grid(32).flags.writeable
+
+
+def test_distinct_count_is_numpys_unique_size() -> None:
+    """The window checks' count of PV levels, NaN (a gap too long to fill) counted once."""
+    rng = np.random.default_rng(6)
+    for size in (0, 1, 2, 17, 400):
+        x = np.round(rng.uniform(-5, 5, size))
+        for holes in (0, 1, 3):
+            y = x.copy()
+            y[rng.integers(0, max(size, 1), holes if size else 0)] = np.nan
+            assert distinct_count(y) == np.unique(y).size, (size, holes)
+    assert distinct_count(np.array([0.0, -0.0, np.inf, -np.inf, np.inf])) == 3
 
 
 def test_mean_and_std_are_numpys_to_the_bit() -> None:

@@ -27,6 +27,38 @@ def test_version_and_help(run_cli: RunCli) -> None:
         assert h.returncode == 0 and "Usage" in h.stdout
 
 
+def test_diagnose_of_one_record_imports_only_what_it_needs(tmp_path: Path) -> None:
+    """Issue 46's start-up budget (0.7 s for ``diagnose`` of 3,600 samples, a record that gets
+    no S/J estimate): typer 0.29 imports pydantic to convert parameters (0.2-0.3 s and 10 MB on
+    a slow machine), hence its pin below 0.29; ``importlib.metadata`` (the version), asyncio
+    and click were 20-50, 25 and 10 ms, ``numpy.ma`` (``np.median``'s and ``np.unique``'s
+    first call) 6-17 ms; the service's stack has no business in a one-record diagnosis."""
+    import subprocess
+    import sys
+
+    rng = np.random.default_rng(1)
+    k = np.arange(3600)
+    pv = 50 + np.sign(np.sin(2 * np.pi * k / 120)) + 0.1 * rng.normal(size=k.size)
+    op = 40 + 3 * np.sin(2 * np.pi * k / 120 - 1) + 0.2 * rng.normal(size=k.size)
+    rec = tmp_path / "loop.csv"
+    rec.write_text("t,sp,pv,op\n" + "".join(f"{t},50,{a:.3f},{b:.3f}\n" for t, a, b in
+                                            zip(k, pv, op, strict=True)))  # fmt: skip
+    heavy = ("pydantic", "fastapi", "sqlalchemy", "asyncua", "pymodbus", "lightgbm", "scipy",
+             "asyncio", "click", "importlib.metadata", "numpy.ma")  # fmt: skip
+    code = (
+        "import sys\n"
+        "from plantcheck.service.cli import main\n"
+        f"sys.argv = ['plantcheck', 'diagnose', {str(rec)!r}, '--json']\n"
+        "try:\n    main()\nexcept SystemExit as exit:\n    assert not exit.code, exit.code\n"
+        f"heavy = {heavy!r}\n"
+        "print(sorted(m for m in sys.modules if m in heavy or m.split('.')[0] in heavy),"
+        " file=sys.stderr)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout)["stiction"]["S"] is None
+    assert out.stderr.strip() == "[]", out.stderr
+
+
 def test_demo_refuses_a_bad_admin_address_before_it_starts(run_cli: RunCli) -> None:
     """``demo --admin`` (issue 48: a proposal typed into the simulator) names the option and
     the fix for an address it cannot use, and starts nothing (no port, no database)."""
