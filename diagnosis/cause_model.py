@@ -77,49 +77,58 @@ class _Walk:
 
 def _walk_layout(model: CauseModel) -> _Walk:
     """``model``'s walk layout; each tree's nodes follow its root up to the next tree's root
-    (``plantcheck model fit`` writes them depth first, tree after tree)."""
-    n_feat = len(model.features)
-    nodes = np.arange(model.feature.size)
+    (``plantcheck model fit`` writes them depth first, tree after tree). Built once per
+    process, on its first decision: 20-45 ms of a one-record ``plantcheck diagnose``, so the
+    slots' indices are made in 32 bits from the start and each array is gathered once."""
+    n_feat = np.int32(len(model.features))
     leaf = model.feature < 0
-    tree_of = np.repeat(np.arange(model.roots.size), np.diff(np.append(model.roots, nodes.size)))
+    per_tree = np.diff(np.append(model.roots, leaf.size))
+    class_of = np.repeat(model.tree_class.astype(np.int32), per_tree)
     levels = [model.roots]
     kids: list[tuple[IntArray, IntArray]] = []
     for _ in range(model.depth - 1):
         cur = levels[-1]
         on_leaf = leaf[cur]
-        first = np.cumsum(np.where(on_leaf, 1, 2)) - np.where(on_leaf, 1, 2)
-        nxt = np.empty(int(first[-1]) + (1 if on_leaf[-1] else 2), dtype=np.int64)
+        inner = ~on_leaf
+        width = inner.astype(np.int64) + 1
+        first = np.cumsum(width) - width
+        nxt = np.empty(int(first[-1] + width[-1]), dtype=np.int64)
         nxt[first] = np.where(on_leaf, cur, model.left[cur])
-        nxt[first[~on_leaf] + 1] = model.right[cur[~on_leaf]]
-        kids.append((np.where(on_leaf, first, first + 1), first))
+        nxt[first[inner] + 1] = model.right[cur[inner]]
+        kids.append((first + inner, first))
         levels.append(nxt)
     starts = np.cumsum([0] + [lv.size for lv in levels])
-    last = np.arange(levels[-1].size) + starts[-2]
-    right = np.concatenate([k[0] + starts[d + 1] for d, k in enumerate(kids)] + [last])
-    left = np.concatenate([k[1] + starts[d + 1] for d, k in enumerate(kids)] + [last])
+    total = int(starts[-1])
+    # indices in 32 bits: the layout is a tenth of a process' memory, and the walk reads them
+    # as fast as 64-bit ones; a slot of the last level is its own child on either side
+    children = np.empty((2, total), dtype=np.int32)
+    for d, (right, left) in enumerate(kids):
+        children[0, starts[d] : starts[d + 1]] = right + starts[d + 1]
+        children[1, starts[d] : starts[d + 1]] = left + starts[d + 1]
+    children[:, starts[-2] :] = np.arange(starts[-2], total, dtype=np.int32)
     slot = np.concatenate(levels)
-    feature = np.where(leaf, 0, model.feature)[slot]
+    feature = np.maximum(model.feature[slot], 0).astype(np.int32)  # a leaf's -1 reads input 0
     missing_left = np.where(model.nan_as_zero, model.threshold >= 0.0, model.default_left)[slot]
     if not np.all(np.isfinite(model.threshold[~leaf])):
         raise ValueError("a tree splits at an infinite threshold: the walk reads NaN as ±inf")
     value = model.value[slot]
-    cell = model.tree_class[tree_of][slot] * n_feat + feature
     # each slot's parent: the slot whose right or left child it is (a carried leaf's copy is
-    # both children of its leaf)
-    parent = np.zeros(slot.size, dtype=np.int64)
-    above = np.arange(starts[-2])
-    parent[right[: above.size]] = above
-    parent[left[: above.size]] = above
-    is_root = np.arange(slot.size) < starts[1]
-    # indices in 32 bits: the layout is a tenth of a process' memory, and the walk reads them
-    # as fast as 64-bit ones
+    # both children of its leaf); a root's step is never read
+    parent = np.zeros(total, dtype=np.int32)
+    above = np.arange(starts[-2], dtype=np.int32)
+    parent[children[0, : above.size]] = above
+    parent[children[1, : above.size]] = above
+    step_cell = (class_of[slot] * n_feat + feature)[parent]
+    step_gain = value - value[parent]
+    step_cell[: starts[1]] = 0
+    step_gain[: starts[1]] = 0.0
     return _Walk(
         threshold=model.threshold[slot],
-        reads=(missing_left * n_feat + feature).astype(np.int32),
-        children=np.stack([right, left]).astype(np.int32),
+        reads=missing_left * n_feat + feature,
+        children=children,
         value=value,
-        step_cell=np.where(is_root, 0, cell[parent]).astype(np.int32),
-        step_gain=np.where(is_root, 0.0, value - value[parent]),
+        step_cell=step_cell,
+        step_gain=step_gain,
         roots=np.arange(model.roots.size, dtype=np.int32),
         base=np.bincount(
             model.tree_class, weights=model.value[model.roots], minlength=len(model.classes)
@@ -236,7 +245,9 @@ def _read_model(path: Path) -> CauseModel:
             depth=int(head["depth"]),
             temperature=float(head["temperature"]),
             meta=dict(head.get("meta") or {}),
-            shape=ShapeNet.from_arrays(dict(z), SHAPE_PREFIX) if _has_shape(z) else None,
+            # the open file, not dict(z): that decompressed every array again (the trees' 5 MB,
+            # 20-45 ms of a one-record `plantcheck diagnose`)
+            shape=ShapeNet.from_arrays(z, SHAPE_PREFIX) if _has_shape(z) else None,
             shape_weight=float(head.get("shape_weight", 0.0)),
             blend_temperature=float(head.get("blend_temperature", 1.0)),
             shape_base=tuple(float(v) for v in head.get("shape_base", ())),

@@ -12,6 +12,7 @@ PyTorch by ``plantcheck model fit`` (``service.shape_model_fit``) and evaluated 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,8 +138,9 @@ class ShapeNet:
         return out
 
     @classmethod
-    def from_arrays(cls, z: dict[str, FloatArray], prefix: str) -> ShapeNet:
-        """The network ``to_arrays`` wrote under ``prefix``."""
+    def from_arrays(cls, z: Mapping[str, NDArray[np.generic]], prefix: str) -> ShapeNet:
+        """The network ``to_arrays`` wrote under ``prefix``; ``z`` may be the open model file
+        (only the network's arrays are read from it)."""
 
         def seq(role: str) -> tuple[FloatArray, ...]:
             out: list[FloatArray] = []
