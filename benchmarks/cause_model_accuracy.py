@@ -7,10 +7,16 @@ left out one at a time: a model fitted without a family's windows, tested on tha
 check windows, beside the full model on the same windows.
 
     python benchmarks/cause_model_accuracy.py [--windows 64000] [--left-out] [--png FILE]
-        [--check-seed 404]
+        [--check-seed 404] [--strength]
 
 ``--check-seed``: read another seed's windows than the fit's check seed (303, which many
 choices have read): 404 was drawn in the thirty-second session and read by no choice before.
+
+``--strength``: how strongly each fault shows, against the decision's accuracy: every fault
+window of the check seed is simulated again with its twin (the same loop without the fault)
+and read by the ratio the corpus keeps it by (``corpus.fault_and_twin``: the error's σ over
+the twin's, or the square root of the ringing power's ratio), per band of that ratio and,
+for the classes a detuned controller may carry, per tuning (about 5 minutes on two cores).
 
 The corpus' evidence is kept in build/corpus (the same cache ``plantcheck model fit --cache``
 fills), so a second run only fits.
@@ -19,6 +25,8 @@ fills), so a second run only fits.
 from __future__ import annotations
 
 import argparse
+import math
+import multiprocessing
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -47,7 +55,7 @@ from plantcheck.service.cause_model_fit import (
     with_blend,
 )
 from plantcheck.service.shape_model_fit import CorpusShapes, corpus_shapes, fit_shape_net
-from plantcheck.simulator.corpus import CLASSES, FAMILIES
+from plantcheck.simulator.corpus import CLASSES, FAMILIES, draw_case, fault_and_twin
 
 CACHE = Path(__file__).resolve().parents[1] / "build" / "corpus"
 
@@ -115,6 +123,8 @@ def main() -> None:
     )
     ap.add_argument("--check-seed", type=int, default=CHECK_SEED, metavar="SEED",
                     help=f"the seed whose windows are read (default {CHECK_SEED})")  # fmt: skip
+    ap.add_argument("--strength", action="store_true",
+                    help="accuracy per band of how strongly each fault shows (5 min)")  # fmt: skip
     a = ap.parse_args()
     if a.check_seed in (FIT_SEED, CALIBRATION_SEED):
         sys.exit(f"--check-seed {a.check_seed}: the model was fitted or calibrated on it")
@@ -154,6 +164,14 @@ def main() -> None:
         plot(table, png, ece)
     print("accuracy per family (learned / rules, windows):")
     accuracy_per_family(chk, pred, rules)
+    if a.strength:
+        if chk_shapes is None:
+            say(
+                "--strength: the model has no shape network, whose inputs say which windows "
+                "were judged: no table"
+            )
+        else:
+            strength(a.check_seed, np.flatnonzero(chk_shapes.judged), chk, pred)
     if a.left_out:
         left_out(a.windows, chk, chk_shapes, pred, families)
 
@@ -176,6 +194,54 @@ def accuracy_per_family(
     short = ev.samples < 300
     print(f"  windows under 300 samples: {np.mean(right[short]):.2f} ({int(short.sum())}); "
           f"300 and more: {np.mean(right[~short]):.2f}")  # fmt: skip
+
+
+STRENGTH_BANDS = (1.3, 1.5, 2.0, 3.0, 5.0, math.inf)
+"""Bands of the fault-over-twin ratio; ``corpus.VISIBLY_FAULTY`` (1.3) keeps a window."""
+
+
+def _fault_ratio(seed_index: tuple[int, int]) -> float:
+    """The window's fault-over-twin ratio (NaN without a twin), the ringing power's
+    square-rooted so that every class reads in units of the error's σ."""
+    case, rec = draw_case(*seed_index)
+    shown = fault_and_twin(case, rec)
+    if shown is None:
+        return math.nan
+    ratio = shown[0] / max(shown[1], 1e-300)
+    return math.sqrt(ratio) if case.cause == "aggressive_tuning" else ratio
+
+
+def strength(
+    seed: int, index: NDArray[np.int64], ev: CorpusEvidence, pred: NDArray[np.int64]
+) -> None:
+    """Print the accuracy of ``pred`` per class and band of the fault-over-twin ratio, and per
+    tuning for the classes drawn with a detuned controller in half their windows."""
+    faulty = np.array([CLASSES[c] not in ("ok", "saturation") for c in ev.y])
+    ratio = np.full(ev.y.size, math.nan)
+    with multiprocessing.get_context("fork").Pool() as pool:
+        ratio[faulty] = pool.map(_fault_ratio, [(seed, int(i)) for i in index[faulty]], 16)
+    tuning = np.array(ev.family["tuning"])
+    print(
+        "accuracy per band of the fault's error over its twin's (ringing power's ratio, "
+        "square-rooted, for aggressive tuning):"
+    )
+    for c, name in enumerate(CLASSES):
+        of = faulty & (ev.y == c)
+        if not of.any():
+            continue
+        cells = []
+        for lo, hi in zip((0.0, *STRENGTH_BANDS[:-1]), STRENGTH_BANDS, strict=True):
+            m = of & (ratio >= lo) & (ratio < hi)
+            if m.any():
+                miss = np.bincount(pred[m][pred[m] != c], minlength=len(CLASSES))
+                worst = f", {CLASSES[int(miss.argmax())]} {int(miss.max())}" if miss.any() else ""
+                cells.append(f"{lo:g}-{hi:g} {np.mean(pred[m] == c):.2f} ({int(m.sum())}{worst})")
+        print(f"  {name}: " + "; ".join(cells))
+        by_tuning = [f"{t} {np.mean(pred[of & (tuning == t)] == c):.2f} "
+                     f"({int(np.sum(of & (tuning == t)))})"
+                     for t in FAMILIES["tuning"] if np.any(of & (tuning == t))]  # fmt: skip
+        if len(by_tuning) > 1:
+            print(f"    per tuning: {', '.join(by_tuning)}")
 
 
 def left_out(

@@ -228,14 +228,29 @@ def _shows(case: CorpusCase, rec: LoopRecord) -> bool:
         starts = int(np.sum(moves[1:] & ~moves[:-1]))
         if starts < 2 and case.family["valve"] != "backlash":
             return False
-    if case.twin is None:
+    shown = fault_and_twin(case, rec)
+    if shown is None:
         return True
+    fault, twin = shown
+    if case.cause == "aggressive_tuning":
+        return fault >= VISIBLY_FAULTY**2 * twin
+    return fault >= VISIBLY_FAULTY * twin
+
+
+def fault_and_twin(case: CorpusCase, rec: LoopRecord) -> tuple[float, float] | None:
+    """What ``VISIBLY_FAULTY`` weighs for a window and its twin (the same loop without the
+    fault, simulated here): the control error's σ (%), or for a loop near its stability limit
+    its ringing power (``ringing_power``); None for a window without a twin (ok, saturation).
+    ``benchmarks/cause_model_accuracy.py --strength`` reads the learned decision's accuracy
+    against their ratio."""
+    if case.twin is None:
+        return None
     twin = simulate_loop(case.twin)
     e, e_twin = rec.sp - rec.pv, twin.sp - twin.pv
     if case.cause == "aggressive_tuning":
         ts, tu = case.config.sample_time_s, case.ultimate_period_s
-        return ringing_power(e, ts, tu) >= VISIBLY_FAULTY**2 * ringing_power(e_twin, ts, tu)
-    return float(np.std(e)) >= VISIBLY_FAULTY * float(np.std(e_twin))
+        return ringing_power(e, ts, tu), ringing_power(e_twin, ts, tu)
+    return float(np.std(e)), float(np.std(e_twin))
 
 
 def ringing_power(e: np.ndarray, ts: float, tu: float) -> float:
