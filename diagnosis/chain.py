@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -52,11 +53,7 @@ from plantcheck.diagnosis.oscillation import (
     detect_oscillation,
     oscillations_json,
 )
-from plantcheck.diagnosis.quantification import (
-    QuantificationParams,
-    QuantificationResult,
-    quantify_stiction,
-)
+from plantcheck.diagnosis.quantification_params import QuantificationParams
 from plantcheck.diagnosis.result import Diagnosis, DiagnosisDraft, action_for
 from plantcheck.diagnosis.shape_tests import (
     ShapeParams,
@@ -113,6 +110,9 @@ from plantcheck.diagnosis.window import (
     check_window,
     fill_short_gaps,
 )
+
+if TYPE_CHECKING:
+    from plantcheck.diagnosis.quantification import QuantificationResult
 
 
 @dataclass(frozen=True)
@@ -914,6 +914,9 @@ def _quantify_recent(
         op, pv = op[-keep:], pv[-keep:]
         diag.notes.append(f"S and J estimated on the last {keep} samples of the window")
     integrating = is_integrating(diag.loop_type)
+    # imported here: a window that is not sized (most) needs none of its grids and filters
+    from plantcheck.diagnosis.quantification import quantify_stiction
+
     return quantify_stiction(op, pv, ts, period_s, p.quantification, integrating)
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from plantcheck.diagnosis.signal_tools import FloatArray
 
 if TYPE_CHECKING:
-    from plantcheck.diagnosis.quantification import QuantificationParams
+    from plantcheck.diagnosis.quantification_params import QuantificationParams
 
 
 class Reason(NamedTuple):

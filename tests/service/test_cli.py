@@ -32,7 +32,8 @@ def test_diagnose_of_one_record_imports_only_what_it_needs(tmp_path: Path) -> No
     no S/J estimate): typer 0.29 imports pydantic to convert parameters (0.2-0.3 s and 10 MB on
     a slow machine), hence its pin below 0.29; ``importlib.metadata`` (the version), asyncio
     and click were 20-50, 25 and 10 ms, ``numpy.ma`` (``np.median``'s and ``np.unique``'s
-    first call) 6-17 ms; the service's stack has no business in a one-record diagnosis."""
+    first call) 6-17 ms, the S/J quantification (a record it does not size) 20 ms; the service's
+    stack has no business in a one-record diagnosis."""
     import subprocess
     import sys
 
@@ -44,7 +45,8 @@ def test_diagnose_of_one_record_imports_only_what_it_needs(tmp_path: Path) -> No
     rec.write_text("t,sp,pv,op\n" + "".join(f"{t},50,{a:.3f},{b:.3f}\n" for t, a, b in
                                             zip(k, pv, op, strict=True)))  # fmt: skip
     heavy = ("pydantic", "fastapi", "sqlalchemy", "asyncua", "pymodbus", "lightgbm", "scipy",
-             "asyncio", "click", "importlib.metadata", "numpy.ma")  # fmt: skip
+             "asyncio", "click", "importlib.metadata", "numpy.ma",
+             "plantcheck.diagnosis.quantification")  # fmt: skip
     code = (
         "import sys\n"
         "from plantcheck.service.cli import main\n"
