@@ -61,6 +61,24 @@ def test_diagnose_of_one_record_imports_only_what_it_needs(tmp_path: Path) -> No
     assert out.stderr.strip() == "[]", out.stderr
 
 
+def test_the_record_reader_loads_no_chain() -> None:
+    """``plantcheck import`` reads records and diagnoses nothing: the reader's median comes
+    from ``diagnosis.signal_tools``, and the package loads its entry points only when asked
+    (every one of them still resolves)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import plantcheck.service.records\n"
+        "print(sorted(m for m in sys.modules if m.startswith('plantcheck.diagnosis.')))\n"
+        "import plantcheck.diagnosis as d\n"
+        "assert all(getattr(d, name) is not None for name in d.__all__)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "['plantcheck.diagnosis.signal_tools']", out.stdout
+
+
 def test_demo_refuses_a_bad_admin_address_before_it_starts(run_cli: RunCli) -> None:
     """``demo --admin`` (issue 48: a proposal typed into the simulator) names the option and
     the fix for an address it cannot use, and starts nothing (no port, no database)."""
