@@ -70,6 +70,17 @@ def fit_cmd(
     second run only fits (about 10 minutes), and one with more windows draws only the new
     ones.
     """
+    # imported here: the diagnosis package costs the other commands' start-up its numpy
+    from plantcheck.diagnosis.cause_model import SHIPPED_MODEL
+
+    out = out or SHIPPED_MODEL
+    # before the corpus' draw (up to half an hour), and before torch and the simulator are
+    # imported (seconds): a path found unwritable after them wastes them
+    if out.is_dir():
+        raise fail(f"--out {out}: is a folder; give the model file's path (e.g. {out}/model.npz)")
+    writable_folder(out.parent, f"--out {out}")
+    if cache is not None:
+        writable_folder(cache, f"--cache {cache}")
     try:
         import lightgbm  # noqa: F401
 
@@ -77,17 +88,7 @@ def fit_cmd(
             import torch  # noqa: F401
     except ImportError as exc:
         raise fail(f"model fit needs {exc.name}: pip install -e '.[fit]'") from None
-    # imported here: the diagnosis package costs the other commands' start-up its numpy/scipy
-    from plantcheck.diagnosis.cause_model import SHIPPED_MODEL
     from plantcheck.service.cause_model_fit import fit_model, save_model
-
-    out = out or SHIPPED_MODEL
-    # before the corpus' draw (up to half an hour): a path found unwritable after it wastes it
-    if out.is_dir():
-        raise fail(f"--out {out}: is a folder; give the model file's path (e.g. {out}/model.npz)")
-    writable_folder(out.parent, f"--out {out}")
-    if cache is not None:
-        writable_folder(cache, f"--cache {cache}")
 
     t0 = time.monotonic()
     rep = fit_model(

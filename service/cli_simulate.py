@@ -110,6 +110,21 @@ def simulate_cmd(
     With --to-csv, simulate --duration at full speed and write one CSV record per loop plus a
     JSON file with its true cause and S, J instead of serving.
     """
+    # the output paths and the duration first: the simulator's modules (scipy.signal) take
+    # seconds to import, and a mistyped path should be named at once
+    if export_map is not None:
+        if export_map.suffix not in (".csv", ".toml"):
+            raise fail("--export-map: the file name must end in .csv or .toml")
+        if map_protocol not in ("modbus", "opcua"):
+            raise fail(f"--map-protocol must be modbus or opcua, not {map_protocol!r}")
+        writable_folder(export_map.parent, f"--export-map {export_map}")
+    elif to_csv is not None:
+        try:
+            seconds = parse_duration(duration)
+        except ValueError as exc:
+            raise fail(f"--duration: {exc}") from None
+        writable_folder(to_csv, f"--to-csv {to_csv}")
+
     from plantcheck.core.toml_config import ConfigError
     from plantcheck.simulator.export import map_csv, map_toml, write_records
     from plantcheck.simulator.scenario import load_scenario
@@ -120,11 +135,6 @@ def simulate_cmd(
         raise fail(f"invalid scenario: {exc}") from None
     scenario = _apply_overrides(scenario, modbus, opcua, admin, speed)
     if export_map is not None:
-        if export_map.suffix not in (".csv", ".toml"):
-            raise fail("--export-map: the file name must end in .csv or .toml")
-        if map_protocol not in ("modbus", "opcua"):
-            raise fail(f"--map-protocol must be modbus or opcua, not {map_protocol!r}")
-        writable_folder(export_map.parent, f"--export-map {export_map}")
         text = (
             map_csv(scenario)
             if export_map.suffix == ".csv"
@@ -140,11 +150,6 @@ def simulate_cmd(
         typer.echo(f"register map of {len(scenario.loop)} loops written to {export_map}")
         return
     if to_csv is not None:
-        try:
-            seconds = parse_duration(duration)
-        except ValueError as exc:
-            raise fail(f"--duration: {exc}") from None
-        writable_folder(to_csv, f"--to-csv {to_csv}")
         start = scenario.clock.start or datetime.now(UTC).replace(microsecond=0)
 
         def progress(frac: float) -> None:
