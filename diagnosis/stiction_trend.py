@@ -12,8 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
-from scipy.stats import theilslopes
+from numpy.typing import ArrayLike, NDArray
 
 WEEK_S = 7 * 24 * 3600.0
 
@@ -46,6 +45,16 @@ class StictionTrend:
     note: str
 
 
+def theil_sen_slope(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
+    """The median of the slopes between every two points of distinct x (Theil 1950, Sen 1968):
+    ``scipy.stats.theilslopes(y, x).slope`` to the bit, computed as it does, without importing
+    ``scipy.stats`` (1.5 s, which every service process paid through the store's reports)."""
+    dx = x[:, np.newaxis] - x
+    dy = y[:, np.newaxis] - y
+    right = dx > 0
+    return float(np.median(dy[right] / dx[right]))
+
+
 def stiction_trend(
     times_s: ArrayLike,
     S: ArrayLike,
@@ -72,7 +81,7 @@ def stiction_trend(
     if n < p.min_estimates or np.ptp(t) <= 0:
         note = f"{n} reliable estimates: at least {p.min_estimates} are needed for a trend"
         return StictionTrend(n, None, cur_s, cur_j, p.limit, above, None, note)
-    slope = float(theilslopes(s, t).slope)
+    slope = theil_sen_slope(t, s)
     # intercept as the median residual: scipy's median(S) − slope·median(t) is pulled by outliers
     intercept = float(np.median(s - slope * t))
     per_week = slope * WEEK_S
