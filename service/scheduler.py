@@ -44,7 +44,7 @@ from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.diagnosis.tuning_proposal import TUNING_CAUSES
 from plantcheck.service.alert_rules import LoopAlertRule, drafts_for
 from plantcheck.service.metrics import ServiceMetrics
-from plantcheck.service.window_diagnosis import diagnose_window
+from plantcheck.service.window_diagnosis import diagnose_window, warm_worker
 from plantcheck.service.worker_lifetime import die_with_parent
 from plantcheck.storage.results import (
     QUANTIFIED_CAUSES,
@@ -143,10 +143,6 @@ def _now_us() -> int:
     return time.time_ns() // 1000
 
 
-def _warm() -> None:
-    """Imported in each worker at start, so the first diagnosis does not pay for imports."""
-
-
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 """What a worker's BLAS reads its thread count from, at load."""
 
@@ -242,7 +238,7 @@ class DiagnosisScheduler:
         )
         loop = asyncio.get_running_loop()
         await asyncio.gather(
-            *(loop.run_in_executor(self._pool, _warm) for _ in range(self.workers))
+            *(loop.run_in_executor(self._pool, warm_worker) for _ in range(self.workers))
         )
 
     async def stop(self, drain_s: float = 10.0) -> None:
