@@ -8,11 +8,10 @@ import logging
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from plantcheck.connectors.base import DeviceConnector, SampleSink, SourceHealth, now_us
 from plantcheck.connectors.modbus import ModbusConnector, ModbusTag
-from plantcheck.connectors.opcua import OpcUaConnector
-from plantcheck.connectors.opcua_security import OpcUaSecurity
 from plantcheck.core.samples import Sample
 from plantcheck.core.status_codes import BAD_NO_COMMUNICATION
 from plantcheck.service.config import Config, SourceConfig
@@ -21,6 +20,9 @@ from plantcheck.storage.source_health import report_health
 from plantcheck.storage.store import LoopRow, Store
 from plantcheck.storage.window import HELD
 from plantcheck.storage.writer import SampleWriter
+
+if TYPE_CHECKING:
+    from plantcheck.connectors.opcua_security import OpcUaSecurity
 
 log = logging.getLogger("plantcheck.ingest")
 
@@ -32,6 +34,8 @@ def security_of(src: SourceConfig) -> OpcUaSecurity | None:
     """The OPC UA security of a source (None: ``security_policy = "None"``)."""
     if src.security_policy == "None":
         return None
+    from plantcheck.connectors.opcua_security import OpcUaSecurity
+
     return OpcUaSecurity(
         certificate=Path(src.certificate),
         private_key=Path(src.private_key),
@@ -79,6 +83,9 @@ def build_connectors(
                 )
             )
         else:
+            # asyncua (0.6-0.7 s to import) only for a service that reads OPC UA
+            from plantcheck.connectors.opcua import OpcUaConnector
+
             utags = [
                 (loops[lp.id].tags[sig], address)
                 for lp in mine

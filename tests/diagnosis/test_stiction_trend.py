@@ -18,13 +18,3 @@ def test_theil_sen_slope_is_scipys(n: int) -> None:
     if np.ptp(t) == 0:
         t[-1] += 60.0
     assert theil_sen_slope(t, s) == theilslopes(s, t).slope
-
-
-def test_the_service_imports_no_scipy_stats() -> None:
-    """scipy.stats took 1.5 s of every service process's start (the store's reports)."""
-    import subprocess
-    import sys
-
-    code = "import sys, plantcheck.service.scheduler; print('scipy.stats' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"

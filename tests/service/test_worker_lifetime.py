@@ -72,23 +72,3 @@ def test_workers_exit_when_the_service_is_killed(tmp_path: Path) -> None:
         if proc.poll() is None:
             proc.kill()
             proc.wait(10)
-
-
-def test_a_diagnosis_worker_imports_the_chain_not_the_service_stack() -> None:
-    """What the scheduler runs in its spawned workers (``warm_worker``, ``diagnose_window``,
-    ``die_with_parent``) loads the chain only: the store, web and job stack cost every worker
-    1.8-2 s of start and their memory."""
-    import sys
-
-    code = (
-        "import sys\n"
-        "from plantcheck.service.window_diagnosis import diagnose_window, warm_worker\n"
-        "from plantcheck.service.worker_lifetime import die_with_parent\n"
-        "print(sorted({m.split('.')[0] for m in sys.modules}"
-        " & {'sqlalchemy', 'fastapi', 'apscheduler', 'alembic', 'asyncua', 'pymodbus'}))"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "[]", out.stdout
-    from plantcheck.service import scheduler, window_diagnosis
-
-    assert scheduler.warm_worker is window_diagnosis.warm_worker

@@ -1,0 +1,37 @@
+"""What a service process imports at start: every process the service, the demo and the tests
+start pays for it (on a 2-core machine, seconds each)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+
+def _loaded(modules: str, prefixes: tuple[str, ...]) -> list[str]:
+    code = (
+        f"import json, sys, {modules}\n"
+        f"print(json.dumps(sorted(m for m in sys.modules if m.startswith({prefixes!r}))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return list(json.loads(out.stdout))
+
+
+def test_the_service_loads_neither_scipy_stats_nor_asyncua_until_it_needs_them() -> None:
+    """scipy.stats (1.5 s: the store's trend reports once imported it) is not used by the
+    service; asyncua (0.6-0.7 s) only by a service that reads OPC UA, when it builds its
+    connector."""
+    got = _loaded("plantcheck.service.app, plantcheck.service.cli_run", ("scipy.stats", "asyncua"))
+    assert got == []
+
+
+def test_a_diagnosis_worker_loads_the_chain_not_the_service_stack() -> None:
+    """What the scheduler runs in its spawned workers (``warm_worker``, ``diagnose_window``,
+    ``die_with_parent``) loads the chain only: the store, web and job stack cost every worker
+    1.8-2 s of start and their memory."""
+    from plantcheck.service import scheduler, window_diagnosis
+
+    assert scheduler.warm_worker is window_diagnosis.warm_worker
+    stacks = ("sqlalchemy", "fastapi", "apscheduler", "alembic", "asyncua", "pymodbus")
+    modules = "plantcheck.service.window_diagnosis, plantcheck.service.worker_lifetime"
+    assert _loaded(modules, stacks) == []
