@@ -19,7 +19,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import lfilter
 
 from plantcheck.simulator.actuator import ActuatorSpec
 from plantcheck.simulator.valves import (
@@ -175,6 +174,10 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
     if d.filtered_noise_std:
         a = math.exp(-ts / d.filtered_noise_tau_s)
         w = rng.normal(0.0, d.filtered_noise_std * math.sqrt(1 - a * a), t.size)
+        # imported here: scipy.signal is 1-2 s of every process that imports the simulator,
+        # and the served plant (simulator.plant) filters its own noise sample by sample
+        from scipy.signal import lfilter
+
         # x[k] = a·x[k-1] + w[k], the same sums in the same order as a loop would make them
         out += lfilter([1.0], [1.0, -a], w)
     for t_step, size in d.steps:

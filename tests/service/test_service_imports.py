@@ -35,3 +35,10 @@ def test_a_diagnosis_worker_loads_the_chain_not_the_service_stack() -> None:
     stacks = ("sqlalchemy", "fastapi", "apscheduler", "alembic", "asyncua", "pymodbus")
     modules = "plantcheck.service.window_diagnosis, plantcheck.service.worker_lifetime"
     assert _loaded(modules, stacks) == []
+
+
+def test_the_served_simulator_loads_no_scipy() -> None:
+    """The plant a simulator serves filters its own noise sample by sample; scipy.signal
+    (1-2 s) is left to the batch simulation of records and corpora."""
+    modules = "plantcheck.simulator.runner, plantcheck.simulator.export, plantcheck.service.cli_run"
+    assert _loaded(modules, ("scipy",)) == []
