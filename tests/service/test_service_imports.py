@@ -42,3 +42,15 @@ def test_the_served_simulator_loads_no_scipy() -> None:
     (1-2 s) is left to the batch simulation of records and corpora."""
     modules = "plantcheck.simulator.runner, plantcheck.simulator.export, plantcheck.service.cli_run"
     assert _loaded(modules, ("scipy",)) == []
+
+
+def test_the_head_revision_read_from_the_files_is_alembics() -> None:
+    """A service that starts on a migrated database reads the head revision without Alembic
+    (its import and every migration module: about a second on a slow machine)."""
+    from alembic.script import ScriptDirectory
+
+    from plantcheck.storage.database import alembic_config, head_revision
+
+    want = ScriptDirectory.from_config(alembic_config("sqlite://")).get_current_head()
+    assert head_revision() == want
+    assert _loaded("plantcheck.service.app", ("alembic",)) == []
