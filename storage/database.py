@@ -86,7 +86,9 @@ def upgrade(url: str) -> str:
     return head_revision()
 
 
-_REVISION_LINE = re.compile(r'^(revision|down_revision)\b[^=\n]*=\s*(None|"[^"]*")', re.M)
+_REVISION_LINE = re.compile(
+    r"^(revision|down_revision)\b[^=\n]*=\s*(None|\"[^\"]*\"|'[^']*')", re.M
+)
 
 
 @cache
@@ -102,9 +104,9 @@ def head_revision() -> str:
         fields = dict(_REVISION_LINE.findall(path.read_text(encoding="utf-8")))
         if "revision" not in fields:
             raise RuntimeError(f"{path.name} names no revision")
-        revisions.add(fields["revision"].strip('"'))
+        revisions.add(fields["revision"].strip("\"'"))
         if fields.get("down_revision", "None") != "None":
-            below.add(fields["down_revision"].strip('"'))
+            below.add(fields["down_revision"].strip("\"'"))
     heads = revisions - below
     if len(heads) != 1:
         raise RuntimeError(f"the migrations have {len(heads)} heads: {sorted(heads)}")
