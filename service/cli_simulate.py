@@ -110,8 +110,8 @@ def simulate_cmd(
     With --to-csv, simulate --duration at full speed and write one CSV record per loop plus a
     JSON file with its true cause and S, J instead of serving.
     """
-    # the output paths and the duration first: the simulator's modules (scipy.signal) take
-    # seconds to import, and a mistyped path should be named at once
+    # the output paths and the duration first, before the simulator's modules are imported
+    # and the scenario read: a mistyped path is named at once
     if export_map is not None:
         if export_map.suffix not in (".csv", ".toml"):
             raise fail("--export-map: the file name must end in .csv or .toml")
