@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import itertools
+import json
 import os
 import socket
 import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -119,6 +121,17 @@ def free_port() -> int:
         if _bindable(port):
             return port
     raise RuntimeError(f"no free port on 127.0.0.1 in {ports.start}-{ports.stop - 1}")
+
+
+def modules_loaded(imports: str, prefixes: tuple[str, ...]) -> list[str]:
+    """The modules whose names start with one of ``prefixes`` that a new Python process has
+    loaded after ``import IMPORTS`` (a comma-separated list), sorted."""
+    code = (
+        f"import json, sys, {imports}\n"
+        f"print(json.dumps(sorted(m for m in sys.modules if m.startswith({prefixes!r}))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return list(json.loads(out.stdout))
 
 
 def case_folders(name: str) -> list[Path]:

@@ -3,26 +3,15 @@ start pays for it (on a 2-core machine, seconds each)."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-
-
-def _loaded(modules: str, prefixes: tuple[str, ...]) -> list[str]:
-    code = (
-        f"import json, sys, {modules}\n"
-        f"print(json.dumps(sorted(m for m in sys.modules if m.startswith({prefixes!r}))))"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return list(json.loads(out.stdout))
+from helpers import modules_loaded
 
 
 def test_the_service_loads_neither_scipy_stats_nor_asyncua_until_it_needs_them() -> None:
     """scipy.stats (1.5 s: the store's trend reports once imported it) is not used by the
     service; asyncua (0.6-0.7 s) only by a service that reads OPC UA, when it builds its
     connector."""
-    got = _loaded("plantcheck.service.app, plantcheck.service.cli_run", ("scipy.stats", "asyncua"))
-    assert got == []
+    modules = "plantcheck.service.app, plantcheck.service.cli_run"
+    assert modules_loaded(modules, ("scipy.stats", "asyncua")) == []
 
 
 def test_a_diagnosis_worker_loads_the_chain_not_the_service_stack() -> None:
@@ -34,14 +23,14 @@ def test_a_diagnosis_worker_loads_the_chain_not_the_service_stack() -> None:
     assert scheduler.warm_worker is window_diagnosis.warm_worker
     stacks = ("sqlalchemy", "fastapi", "apscheduler", "alembic", "asyncua", "pymodbus")
     modules = "plantcheck.service.window_diagnosis, plantcheck.service.worker_lifetime"
-    assert _loaded(modules, stacks) == []
+    assert modules_loaded(modules, stacks) == []
 
 
 def test_the_served_simulator_loads_no_scipy() -> None:
     """The plant a simulator serves filters its own noise sample by sample; scipy.signal
     (1-2 s) is left to the batch simulation of records and corpora."""
     modules = "plantcheck.simulator.runner, plantcheck.simulator.export, plantcheck.service.cli_run"
-    assert _loaded(modules, ("scipy",)) == []
+    assert modules_loaded(modules, ("scipy",)) == []
 
 
 def test_the_head_revision_read_from_the_files_is_alembics() -> None:
@@ -53,4 +42,4 @@ def test_the_head_revision_read_from_the_files_is_alembics() -> None:
 
     want = ScriptDirectory.from_config(alembic_config("sqlite://")).get_current_head()
     assert head_revision() == want
-    assert _loaded("plantcheck.service.app", ("alembic",)) == []
+    assert modules_loaded("plantcheck.service.app", ("alembic",)) == []
