@@ -149,7 +149,7 @@ def _apply_proposals_and_watch(port: int, admin: int) -> None:
         reply = asyncio.run(send_admin("127.0.0.1", admin, f"tune {name} {gain} {dcs['integral']}"))
         assert reply.startswith("ok tune"), reply
     print(f"proposals applied: { {n: t['dcs'] for n, t in settings.items()} }")
-    causes: dict[str, list[str]] = {}
+    since: dict[str, list[dict[str, Any]]] = {}
     # three periods, and what a loaded machine's scheduler may run late
     while time.time() - tuned_at < 3 * DEMO_PERIOD_S + 10:
         time.sleep(1)
@@ -158,13 +158,18 @@ def _apply_proposals_and_watch(port: int, admin: int) -> None:
                 f"http://127.0.0.1:{port}/api/v1/loops/{name}/diagnoses",
                 params={"limit": 10}, timeout=5,
             ).json()  # fmt: skip
-            causes[name] = [r["cause"] for r in rows if _epoch(r["created_at"]) > tuned_at][::-1]
+            since[name] = [r for r in rows if _epoch(r["created_at"]) > tuned_at][::-1]
+        causes = {name: [r["cause"] for r in rows] for name, rows in since.items()}
         if all(_loop(port, name)["cause"] == "ok" for name in RETUNED):
             break
     else:
         pytest.fail(f"the loops' diagnoses since the retuning: {causes}")
     print(f"both ok {time.time() - tuned_at:.0f} s after the retuning: {causes}")
-    notes = _loop(port, "TIC401")["diagnosis"]["notes"]
+    # The first `ok` is judged from the retuning on. A later one may not be: at 100x the
+    # window (1 simulated hour) leaves the retuning 36 s after it, which a loaded machine's
+    # late scheduler can reach before the second `ok` confirms (CI, stop 75).
+    first_ok = next(r for r in since["TIC401"] if r["cause"] == "ok")
+    notes = first_ok["diagnosis"]["notes"]
     assert notes[0].startswith("the controller was retuned"), notes
 
 
