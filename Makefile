@@ -16,10 +16,13 @@ unexport PYTHONDONTWRITEBYTECODE
 # it must still install them into that venv.
 STAMP  := $(VENV)/.plantcheck-dev
 
+# --no-compile: pip otherwise compiles every module it installs to bytecode, 85 of the 119 s
+# this install took on a 2-core machine (torch, sympy, scipy: thousands of modules the tests
+# never import). Python compiles what a process imports and keeps it (above).
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[dev,fit]"
+	$(BIN)/pip install --quiet --no-compile -e ".[dev,fit]"
 	touch $@
 
 venv: $(STAMP)
