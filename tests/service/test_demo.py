@@ -119,6 +119,17 @@ def _watch_plant_oscillation(port: int, tmp_path: Path) -> None:
 RETUNED = ("PIC301", "TIC401")
 """The demo's aggressive and its sluggish loop (issue 48)."""
 
+DIAGNOSES_TO_OK = 8
+"""Diagnoses of each loop after the retuning within which it must read ``ok``: the first may
+still judge data from before it (ingestion), TIC401's window shows its tuning only from its
+next set-point step (every 30 simulated minutes, 18 s at 100x: up to two quiet windows, which
+confirm nothing, ``scheduler.judges_tuning``), then two agreeing diagnoses confirm it; a
+loaded machine's simulator falls behind, so more diagnoses come before that step. Counted in
+diagnoses, not seconds, because a loaded machine's scheduler runs late too: with 4 CPU-bound
+processes beside the test both loops read ``ok`` after 58 s and 6 diagnoses (unloaded 21 s).
+That the turn comes from the retuning, not from the window moving past it, the first ``ok``'s
+note says."""
+
 
 def _loop(port: int, name: str) -> dict[str, Any]:
     return dict(httpx.get(f"http://127.0.0.1:{port}/api/v1/loops/{name}", timeout=5).json())
@@ -128,8 +139,9 @@ def _apply_proposals_and_watch(port: int, admin: int) -> None:
     """Issue 48: the service proposes a PI setting for the aggressive and the sluggish loop;
     typed into the simulator as the page gives it in the control system's form (the admin
     command ``tune``, the gain in % of travel per % of span), both loops read ``ok`` within
-    three diagnosis periods (30 s): the chain judges a window from the retuning on
-    (``diagnosis/controller_change.py``) and two agreeing diagnoses confirm it."""
+    ``DIAGNOSES_TO_OK`` diagnoses (about three periods, 30 s, unloaded): the chain judges a
+    window from the retuning on (``diagnosis/controller_change.py``) and two agreeing
+    diagnoses confirm it."""
     from plantcheck.simulator.faults import send_admin
 
     settings: dict[str, dict[str, Any]] = {}
@@ -150,8 +162,7 @@ def _apply_proposals_and_watch(port: int, admin: int) -> None:
         assert reply.startswith("ok tune"), reply
     print(f"proposals applied: { {n: t['dcs'] for n, t in settings.items()} }")
     since: dict[str, list[dict[str, Any]]] = {}
-    # three periods, and what a loaded machine's scheduler may run late
-    while time.time() - tuned_at < 3 * DEMO_PERIOD_S + 10:
+    while time.time() - tuned_at < 4 * DIAGNOSES_TO_OK * DEMO_PERIOD_S:
         time.sleep(1)
         for name in RETUNED:
             rows = httpx.get(
@@ -162,15 +173,18 @@ def _apply_proposals_and_watch(port: int, admin: int) -> None:
         causes = {name: [r["cause"] for r in rows] for name, rows in since.items()}
         if all(_loop(port, name)["cause"] == "ok" for name in RETUNED):
             break
+        if any(len(rows) >= DIAGNOSES_TO_OK for rows in since.values()):
+            pytest.fail(f"the loops' diagnoses since the retuning: {causes}")
     else:
         pytest.fail(f"the loops' diagnoses since the retuning: {causes}")
     print(f"both ok {time.time() - tuned_at:.0f} s after the retuning: {causes}")
     # The first `ok` is judged from the retuning on. A later one may not be: at 100x the
     # window (1 simulated hour) leaves the retuning 36 s after it, which a loaded machine's
-    # late scheduler can reach before the second `ok` confirms (CI, stop 75).
+    # late scheduler can reach before the second `ok` confirms (CI, stop 75). The service
+    # may put a note first (a window shortened to the data stored so far).
     first_ok = next(r for r in since["TIC401"] if r["cause"] == "ok")
     notes = first_ok["diagnosis"]["notes"]
-    assert notes[0].startswith("the controller was retuned"), notes
+    assert any(n.startswith("the controller was retuned") for n in notes[:2]), notes
 
 
 def _epoch(iso: str) -> float:
