@@ -76,9 +76,12 @@ def _stop(*procs: subprocess.Popen[bytes]) -> str:
 @pytest.mark.slow(minutes=1.5)
 def test_demo_shows_every_loop_with_its_true_cause(tmp_path: Path) -> None:
     port, admin = free_port(), free_port()
+    # the test stops the demo; its duration outlasts the waits below at their limits (true
+    # causes, the plant-wide group, the proposals, the retuned loops' turn to ok)
+    waits = DEADLINE_S + 2 * 3 * DEMO_PERIOD_S + 4 * DIAGNOSES_TO_OK * DEMO_PERIOD_S
     proc = _cli(
         "demo", "--port", str(port), "--data-dir", str(tmp_path),
-        "--admin", f"127.0.0.1:{admin}", "--duration", str(2 * DEADLINE_S + 60),
+        "--admin", f"127.0.0.1:{admin}", "--duration", str(waits + 60),
     )  # fmt: skip
     try:
         _watch_true_causes(proc, port)
