@@ -29,6 +29,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -204,6 +205,11 @@ def _open_text(path: Path) -> io.TextIOWrapper:
     except UnicodeDecodeError as exc:
         # a multi-byte character cut at the end of the sniffed bytes is still UTF-8
         encoding = "utf-8-sig" if exc.start >= len(head) - 3 else "latin-1"
+    return _as_text(f, encoding)
+
+
+def _as_text(f: BinaryIO, encoding: str) -> io.TextIOWrapper:
+    """``f`` decoded as a record is: bad bytes replaced, any line end read as one."""
     return io.TextIOWrapper(f, encoding=encoding, errors="replace", newline=None)
 
 
@@ -234,12 +240,12 @@ _CHUNK_BYTES = 1 << 22
 
 
 def _plain_rows_to_skip(
-    path: Path, header_line: str, encoding: str, keep: int
+    path: Path, header_line: str, sep: str, encoding: str, keep: int
 ) -> tuple[int, int, int] | None:
     """(byte offset, lines before it, data rows before it) when the file's rows before that
     offset need no parsing to be counted, leaving the last ``keep`` rows and a margin after
     it: each ends in LF (CRLF too), none is blank or quoted or longer than ``MAX_LINE_CHARS``
-    bytes, each holds the separator, and the lines up to the header (``header_line``, as the
+    bytes, each holds the separator ``sep``, and the lines up to the header (``header_line``, as the
     text reader found it) have no lone CR either. None otherwise: the file is read whole."""
     with path.open("rb") as f:
         head = f.read(SNIFF_BYTES)
@@ -264,7 +270,7 @@ def _plain_rows_to_skip(
             return None
         pos, prev, done, carry = end + 1, end, 0, b""
         f.seek(pos)
-        sep_byte = ord(_detect_separator(header_line))
+        sep_byte = ord(sep)
         while done < skip:
             data = carry + f.read(_CHUNK_BYTES)
             cut = data.rfind(b"\n") + 1
@@ -292,9 +298,7 @@ def _reopen_at(path: Path, offset: int, encoding: str) -> io.TextIOWrapper:
     """The file as text from byte ``offset`` (a line's start), decoded as ``_open_text`` does."""
     f = path.open("rb")
     f.seek(offset)
-    return io.TextIOWrapper(
-        f, encoding="utf-8" if encoding == "utf-8-sig" else encoding, errors="replace", newline=None
-    )
+    return _as_text(f, "utf-8" if encoding == "utf-8-sig" else encoding)
 
 
 def _read_columns(
@@ -325,7 +329,7 @@ def _read_columns(
             and skip_from_bytes is not None
             and path.stat().st_size >= skip_from_bytes
         ):
-            skipped = _plain_rows_to_skip(path, header_line, f.encoding, max_rows)
+            skipped = _plain_rows_to_skip(path, header_line, sep, f.encoding, max_rows)
         total = 0
         if skipped is not None:
             offset, before, total = skipped
