@@ -21,14 +21,17 @@ STAMP  := $(VENV)/.plantcheck-dev
 # the service never imports (torch and what comes with it, mypy, pip), which the few processes
 # that import them compile then: 24 s instead of 85. Left uncompiled, the first services of a
 # test run compiled their imports beside each other, at the run's busiest moment. A file that
-# does not compile (test data in a package) is left to Python, hence `|| true`.
+# does not compile (test data in a package) is left to Python, hence `|| true`. pip's own
+# switch against compiling (PIP_NO_COMPILE, set by the set-up test, whose scratch install runs a
+# few tests in one process and no service) is kept here too: 48 CPU-s spared in that test.
 NOT_PRECOMPILED := /site-packages/(torch|torchgen|functorch|sympy|networkx|mypy|mypyc|pip|setuptools)/
+PRECOMPILE := $(if $(filter-out 0 false no off,$(PIP_NO_COMPILE)),no,yes)
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet --no-compile -e ".[dev,fit]"
-	$(BIN)/python -m compileall -q -j 0 -x '$(NOT_PRECOMPILED)' \
+	test $(PRECOMPILE) = no || $(BIN)/python -m compileall -q -j 0 -x '$(NOT_PRECOMPILED)' \
 	  "$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')" \
 	  > /dev/null || true
 	touch $@
