@@ -71,8 +71,17 @@ system-deps:
 # window, a fault drill's outages, a job queue's periods) and a third worker uses those waits
 # (on a 2-core machine beside a CPU-bound process: 10.2 min of pytest instead of 12.6). A fourth
 # gained 3 % when both cores were already busy throughout (918 s against 951 s).
+#
+# The tests' processes (workers, the services and commands they start) get one OpenBLAS thread
+# and passive OpenMP waits, unless the environment says otherwise: OpenBLAS's second thread
+# spun on the other core through the chain's small matrix products (the generated-cases test
+# 32.9 CPU-s for 22 s of wall, 20.7 with one thread), and the OpenMP threads of PyTorch and
+# LightGBM spun at every barrier while a test's other thread waited for a core (the network-fit
+# tests beside two CPU-bound processes: 28.5 CPU-s, 15.5 passive). The fits fix their own
+# thread counts, so their results are the same.
 pytest: venv system-deps
-	$(BIN)/pytest -q -n 3 --dist worksteal --durations=15 $(PYTEST_ARGS)
+	OPENBLAS_NUM_THREADS=$${OPENBLAS_NUM_THREADS:-1} OMP_WAIT_POLICY=$${OMP_WAIT_POLICY:-PASSIVE} \
+	  $(BIN)/pytest -q -n 3 --dist worksteal --durations=15 $(PYTEST_ARGS)
 
 # mypy (a minute of one core on a fresh clone) runs beside pytest rather than before it: before,
 # it held one core while the other waited. Its output follows the tests' and fails the run the

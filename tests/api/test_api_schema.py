@@ -33,12 +33,14 @@ def test_api_conforms_to_its_openapi(service: Service, tmp_path: Path) -> None:
         str(tmp_path),
     ]
     key = ["-H", f"X-API-Key: {API_KEY}"]
-    # without the key every route answers 401 whatever its input: a few examples show it; with
-    # the key the inputs matter. The stateful phase chains calls through the schema's links
+    # without the key the reads answer as with it (this service asks it only of writes) and the
+    # writes answer 401 whatever their input: a few examples show it, and the keyed run's
+    # coverage phase tries every read's boundary inputs (the same phase here took 10.6 of 18.6 s
+    # unloaded, 592 requests). The stateful phase chains calls through the schema's links
     # (a loop id from /loops into /loops/{id}): at thirty examples it took 19 s of the test's
     # 73 (unloaded, three times that beside a CPU hog), at ten 3 s
     for examples, phases, auth in (
-        ("10", "examples,coverage,fuzzing,stateful", []),
+        ("10", "examples,fuzzing,stateful", []),
         ("30", "examples,coverage,fuzzing", key),
         ("10", "stateful", key),
     ):
