@@ -67,10 +67,12 @@ system-deps:
 	fi
 
 # PYTEST_ARGS narrows the run (the set-up test runs `make test` in a scratch clone on a few tests)
-# Three workers on two cores: the longest tests wait on real time (a simulated plant filling its
-# window, a fault drill's outages, a job queue's periods) and a third worker uses those waits
-# (on a 2-core machine beside a CPU-bound process: 10.2 min of pytest instead of 12.6). A fourth
-# gained 3 % when both cores were already busy throughout (918 s against 951 s).
+# Four workers on two cores: the longest tests wait on real time (a simulated plant filling its
+# window, a fault drill's outages, a job queue's periods) and the workers beyond two use those
+# waits (on a 2-core machine beside a CPU-bound process: three workers 10.2 min of pytest
+# instead of 12.6 with two). A fourth gained 3 % while spinning BLAS and OpenMP threads kept both
+# cores busy throughout (918 s against 951 s); once they waited passively (below) the suite used
+# 81 % of two cores on three workers, and a fourth took pytest from 588 to 546 s.
 #
 # The tests' processes (workers, the services and commands they start) get one OpenBLAS thread
 # and passive OpenMP waits, unless the environment says otherwise: OpenBLAS's second thread
@@ -81,7 +83,7 @@ system-deps:
 # thread counts, so their results are the same.
 pytest: venv system-deps
 	OPENBLAS_NUM_THREADS=$${OPENBLAS_NUM_THREADS:-1} OMP_WAIT_POLICY=$${OMP_WAIT_POLICY:-PASSIVE} \
-	  $(BIN)/pytest -q -n 3 --dist worksteal --durations=15 $(PYTEST_ARGS)
+	  $(BIN)/pytest -q -n 4 --dist worksteal --durations=15 $(PYTEST_ARGS)
 
 # mypy (a minute of one core on a fresh clone) runs beside pytest rather than before it: before,
 # it held one core while the other waited. Its output follows the tests' and fails the run the
