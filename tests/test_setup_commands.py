@@ -9,7 +9,7 @@ which ``make venv`` honours too: the same files installed, 20 of the test's 118 
 spared by pip and about 48 by the Makefile's compileall; Python compiles what it imports). The
 demo runs 10 s on a free port; ``make test`` runs the linters, mypy and the tests of
 ``tests/core`` in one process (``PYTEST_ARGS``: the whole suite already runs around this test;
-``-n 0`` spares starting three workers for one file).
+``-n 0`` spares starting four workers for one file).
 """
 
 from __future__ import annotations
