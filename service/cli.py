@@ -17,6 +17,7 @@ import typer
 
 from plantcheck.core.vocabulary import LoopType
 from plantcheck.service.allocator import tune_allocator
+from plantcheck.service.blas_threads import one_blas_thread
 from plantcheck.service.cli_common import fail
 from plantcheck.service.cli_model import model_app
 from plantcheck.service.cli_run import demo_cmd, run_cmd, worker_cmd
@@ -364,6 +365,8 @@ def _emit(payload: Any, as_json: bool) -> None:
 
 def main() -> None:
     """Console-script entry point: never shows a traceback."""
+    # before any command imports numpy, which reads the thread count once
+    one_blas_thread()
     tune_allocator()
     try:
         app()

@@ -43,6 +43,7 @@ from plantcheck.api.deps import iso_required
 from plantcheck.diagnosis.result import action_for, priority_of, state_of
 from plantcheck.diagnosis.tuning_proposal import TUNING_CAUSES
 from plantcheck.service.alert_rules import LoopAlertRule, drafts_for
+from plantcheck.service.blas_threads import one_blas_thread
 from plantcheck.service.metrics import ServiceMetrics
 from plantcheck.service.window_diagnosis import diagnose_window, warm_worker
 from plantcheck.service.worker_lifetime import die_with_parent
@@ -143,21 +144,6 @@ def _now_us() -> int:
     return time.time_ns() // 1000
 
 
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-"""What a worker's BLAS reads its thread count from, at load."""
-
-
-def one_blas_thread_per_worker() -> None:
-    """Start worker processes with one BLAS thread each, unless the environment says
-    otherwise. A diagnosis multiplies matrices of a few thousand values, where OpenBLAS's
-    threads only spin: a worker on 2 cores burnt 27-30 ms of CPU per 1-h loop window with
-    them and 17 ms without, at the same wall time (``benchmarks/service.py``). A spawned
-    worker loads numpy before any initializer runs, so the setting goes into the
-    environment it inherits (the service's own numpy, loaded already, keeps its threads)."""
-    for name in BLAS_THREAD_VARIABLES:
-        os.environ.setdefault(name, "1")
-
-
 class DiagnosisScheduler:
     """Owns the APScheduler instance and the worker pool of one service."""
 
@@ -228,7 +214,9 @@ class DiagnosisScheduler:
         """Start the worker processes (spawned: no inherited event loop or database handles)
         and read the loops' tag mapping."""
         self._loops = await self.store.loops()
-        one_blas_thread_per_worker()
+        # a spawned worker loads numpy before any initializer runs: the setting goes into the
+        # environment it inherits (the command line has set it already; a host program may not)
+        one_blas_thread()
         ctx = multiprocessing.get_context("spawn")
         self._pool = ProcessPoolExecutor(
             max_workers=self.workers,
