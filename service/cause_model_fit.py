@@ -23,6 +23,8 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +46,15 @@ from plantcheck.service.shape_model_fit import (
     fit_shape_net,
 )
 from plantcheck.service.shape_model_fit import FIT_THREADS as SHAPE_THREADS
-from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, FAMILY_KEYS, draw_case
+from plantcheck.simulator.corpus import (
+    CLASSES,
+    CORPUS_VERSION,
+    FAMILY_KEYS,
+    CorpusCase,
+    read_chunk,
+    window_chunks,
+)
+from plantcheck.simulator.loop import LoopRecord
 
 FIT_SEED, CALIBRATION_SEED, CHECK_SEED = 101, 202, 303
 """The corpus seeds of the fit, the temperature and the check figures: never the same."""
@@ -115,9 +125,9 @@ class CorpusEvidence:
     skipped: int
 
 
-def _one(args: tuple[int, int]) -> tuple[int, str, list[float] | None, dict[str, str], int]:
-    seed, index = args
-    case, rec = draw_case(seed, index)
+def _evidence(
+    seed: int, index: int, case: CorpusCase, rec: LoopRecord
+) -> tuple[int, str, list[float] | None, dict[str, str], int]:
     try:
         rules, ev = chain_evidence(rec.pv, rec.op, case.config.sample_time_s, sp=rec.sp,
                                    loop_type=case.loop_type)  # fmt: skip
@@ -190,9 +200,8 @@ def _draw_evidence(
     t0 = time.monotonic()
     ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
     with ctx.Pool(jobs) as pool:
-        for drawn, (y, rule, vec, family, ns) in enumerate(
-            pool.imap(_one, [(seed, i) for i in range(first, n)], chunksize=16), 1
-        ):
+        chunks = pool.imap(partial(read_chunk, _evidence), window_chunks(seed, first, n, jobs))
+        for drawn, (y, rule, vec, family, ns) in enumerate(chain.from_iterable(chunks), 1):
             if vec is None:
                 skipped += 1
             else:

@@ -15,6 +15,8 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +28,14 @@ from plantcheck.diagnosis.cause_model import blended, safe_log
 from plantcheck.diagnosis.chain import chain_shape_input
 from plantcheck.diagnosis.signal_shape import SCALARS, SHAPE_SAMPLES, ShapeNet
 from plantcheck.service.corpus_cache import cached_start
-from plantcheck.simulator.corpus import CLASSES, CORPUS_VERSION, draw_case
+from plantcheck.simulator.corpus import (
+    CLASSES,
+    CORPUS_VERSION,
+    CorpusCase,
+    read_chunk,
+    window_chunks,
+)
+from plantcheck.simulator.loop import LoopRecord
 
 SHAPE_VERSION = 1
 """Raised whenever ``signal_shape.shape_input`` changes: cached shapes are then redrawn."""
@@ -63,9 +72,9 @@ class CorpusShapes:
     judged: NDArray[np.bool_]
 
 
-def _one(args: tuple[int, int]) -> tuple[int, NDArray[np.float64], NDArray[np.float64], bool]:
-    seed, index = args
-    case, rec = draw_case(seed, index)
+def _shape(
+    seed: int, index: int, case: CorpusCase, rec: LoopRecord
+) -> tuple[int, NDArray[np.float64], NDArray[np.float64], bool]:
     x, judged = chain_shape_input(rec.pv, rec.op, rec.sp, loop_type=case.loop_type)
     return CLASSES.index(case.cause), x.channels, x.scalars, judged
 
@@ -130,9 +139,10 @@ def _draw_shapes(
         return CorpusShapes(chans, scalars, y, judged)
     t0 = time.monotonic()
     ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
-    with ctx.Pool(jobs or os.cpu_count() or 1) as pool:
-        work = pool.imap(_one, [(seed, i) for i in range(first, n)], chunksize=32)
-        for i, (cls, c, s, ok) in enumerate(work):
+    jobs = jobs or os.cpu_count() or 1
+    with ctx.Pool(jobs) as pool:
+        chunks = pool.imap(partial(read_chunk, _shape), window_chunks(seed, first, n, jobs))
+        for i, (cls, c, s, ok) in enumerate(chain.from_iterable(chunks)):
             # the channels went through float16 in shape_input: stored exactly
             chans[i], scalars[i], y[i], judged[i] = c, s, cls, ok
             done = first + i + 1

@@ -13,8 +13,10 @@ import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from functools import partial
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import brentq
 
 from plantcheck.simulator.actuator import ActuatorSpec
@@ -129,14 +131,63 @@ def _loop_gain(p: Process, ti: float, w: float, ts: float) -> complex:
     return complex(c * g * delay)
 
 
+def _c_prod(ar: Any, ai: Any, br: Any, bi: Any) -> tuple[Any, Any]:
+    """CPython's complex product (``_Py_c_prod``) on real and imaginary parts, elementwise."""
+    return ar * br - ai * bi, ar * bi + ai * br
+
+
+def _c_quot(ar: Any, ai: Any, br: NDArray[np.float64], bi: NDArray[np.float64]) -> tuple[Any, Any]:
+    """CPython 3.11's complex quotient (``_Py_c_quot``, Smith's method: the larger part of
+    the divisor divides the smaller), elementwise. numpy's own complex division rounds
+    differently in the last bit."""
+    first = np.abs(br) >= np.abs(bi)
+    with np.errstate(all="ignore"):  # the branch not taken may divide by zero
+        r1 = bi / br
+        d1 = br + bi * r1
+        r2 = br / bi
+        d2 = br * r2 + bi
+        re = np.where(first, (ar + ai * r1) / d1, (ar * r2 + ai) / d2)
+        im = np.where(first, (ai - ar * r1) / d1, (ai * r2 - ar) / d2)
+    return re, im
+
+
+def _loop_gains(
+    p: Process, ti: float, ws: NDArray[np.float64], ts: float
+) -> NDArray[np.complex128]:
+    """``_loop_gain`` at every frequency of ``ws``, the same values bit for bit: its Python
+    complex arithmetic spelled out on real arrays (a float operand is a complex with a 0.0
+    imaginary part, as CPython converts it), its ``np.exp`` the same, and its last product
+    numpy's complex scalar product. Ten times faster than 2,000 calls, which were a fifth of a
+    corpus window's draw."""
+    zero = np.zeros_like(ws)
+    sr, si = _c_prod(0.0, 1.0, ws, zero)  # s = 1j·ω
+    tr, ti_s = _c_prod(ti, 0.0, sr, si)
+    qr, qi = _c_quot(1.0, 0.0, tr, ti_s)
+    cr, ci = 1.0 + qr, 0.0 + qi
+    er, ei = _c_prod(-sr, -si, p.theta_s + ts / 2.0, 0.0)
+    arg = np.empty(ws.size, dtype=np.complex128)
+    arg.real, arg.imag = er, ei
+    delay = np.exp(arg)
+    if p.kind == "integrating":
+        gr, gi = _c_quot(p.K, 0.0, sr, si)
+    else:
+        lr, li = _c_prod(p.tau_s, 0.0, sr, si)
+        gr, gi = _c_quot(p.K, 0.0, lr + 1.0, li + 0.0)
+        if p.tau2_s > 0:
+            zr, zi = _c_prod(p.zero_s, 0.0, sr, si)
+            gr, gi = _c_prod(gr, gi, 1.0 + zr, 0.0 + zi)
+            lr, li = _c_prod(p.tau2_s, 0.0, sr, si)
+            gr, gi = _c_quot(gr, gi, lr + 1.0, li + 0.0)
+    pr, pi_ = _c_prod(cr, ci, gr, gi)
+    out = np.empty(ws.size, dtype=np.complex128)
+    out.real, out.imag = _c_prod(pr, pi_, delay.real, delay.imag)
+    return out
+
+
 def ultimate_gain(p: Process, ti: float, ts: float) -> tuple[float, float]:
     """Ultimate gain Ku and period Tu (s) of the PI loop with integral time ``ti``."""
-
-    def phase(w: float) -> float:
-        return float(np.unwrap([0.0, np.angle(_loop_gain(p, ti, w, ts))])[1]) + math.pi
-
     ws = np.logspace(-4, math.log10(math.pi / ts), 2000)
-    ph = np.unwrap(np.angle([_loop_gain(p, ti, w, ts) for w in ws]))
+    ph = np.unwrap(np.angle(_loop_gains(p, ti, ws, ts)))
     idx = np.flatnonzero(ph < -math.pi)
     i = int(idx[0])
     wu = float(brentq(lambda w: float(np.interp(w, ws, ph)) + math.pi, ws[i - 1], ws[i]))

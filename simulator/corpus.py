@@ -16,12 +16,14 @@ its window; the ambiguity that remains (short records, few cycles, noise) is the
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
 from plantcheck.diagnosis.signal_tools import hann_power
+from plantcheck.simulator.batch_loop import BATCH_SAMPLES, simulate_loops
 from plantcheck.simulator.cases import (
     simc_pi_tc,
     ultimate_gain,
@@ -35,6 +37,8 @@ from plantcheck.simulator.loop import (
     simulate_loop,
 )
 from plantcheck.simulator.plant_windows import steady_op
+
+T = TypeVar("T")
 
 CORPUS_VERSION = 7
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
@@ -185,17 +189,78 @@ def _set_points(
 def draw_case(seed: int, index: int, attempts: int = 20) -> tuple[CorpusCase, LoopRecord]:
     """Window ``index`` of corpus ``seed`` and its simulated record: the first of up to
     ``attempts`` draws whose label shows in the record (``VISIBLE``, output limits)."""
-    cause = CLASSES[index % len(CLASSES)]
-    last: tuple[CorpusCase, LoopRecord] | None = None
-    for attempt in range(attempts):
-        rng = np.random.default_rng([seed, index, attempt])
-        case = _draw(rng, index, cause)
-        rec = simulate_loop(case.config)
-        last = (case, rec)
-        if _shows(case, rec):
-            return last
-    assert last is not None
-    return last
+    return draw_cases(seed, [index], attempts)[0]
+
+
+def draw_cases(
+    seed: int, indices: Sequence[int], attempts: int = 20
+) -> list[tuple[CorpusCase, LoopRecord]]:
+    """``[draw_case(seed, i, attempts) for i in indices]``, the same windows bit for bit,
+    simulated side by side (``iter_cases``)."""
+    drawn = {i: (case, rec) for i, case, rec in iter_cases(seed, indices, attempts)}
+    return [drawn[i] for i in indices]
+
+
+def iter_cases(
+    seed: int, indices: Iterable[int], attempts: int = 20, pass_samples: int = BATCH_SAMPLES
+) -> Iterator[tuple[int, CorpusCase, LoopRecord]]:
+    """Windows ``indices`` of corpus ``seed`` as ``draw_case`` draws them, each with its
+    index, in the order they are settled. Each pass simulates side by side
+    (``batch_loop.simulate_loops``) the next draws of the windows not yet shown and as many
+    new windows as ``pass_samples`` holds, with every draw's twin: the twin of a draw that
+    fails before it is weighed is simulated for nothing, which costs less than another pass.
+    A window whose ``attempts`` draws all fail keeps its last."""
+    fresh = iter(dict.fromkeys(indices))
+    retry: list[tuple[int, int]] = []
+    while True:
+        draws: list[tuple[int, int, CorpusCase]] = []
+        budget = 0
+        while budget < pass_samples:
+            if retry:
+                i, attempt = retry.pop()
+            elif (nxt := next(fresh, None)) is not None:
+                i, attempt = nxt, 0
+            else:
+                break
+            case = _draw(np.random.default_rng([seed, i, attempt]), i, CLASSES[i % len(CLASSES)])
+            draws.append((i, attempt, case))
+            budget += (1 + (case.twin is not None)) * (
+                case.config.n_samples + case.config.warmup_samples
+            )
+        if not draws:
+            return
+        twins = [case.twin for _, _, case in draws if case.twin is not None]
+        recs = simulate_loops([case.config for _, _, case in draws] + twins)
+        twin_recs = iter(recs[len(draws) :])
+        for (i, attempt, case), rec in zip(draws, recs, strict=False):
+            twin = next(twin_recs) if case.twin is not None else None
+            shown = _plausible(case, rec) and (twin is None or _beside_twin(case, rec, twin))
+            if shown or attempt + 1 >= attempts:
+                yield i, case, rec
+            else:
+                retry.append((i, attempt + 1))
+
+
+CHUNK_WINDOWS = 4000
+"""Windows one worker draws side by side at most (``window_chunks``): a pass of
+``iter_cases`` holds about 2,000, and the later passes take the retries of the earlier."""
+
+
+def window_chunks(seed: int, first: int, n: int, jobs: int) -> list[tuple[int, int, int]]:
+    """Windows ``first``..n-1 of corpus ``seed`` in contiguous chunks ``(seed, start, stop)``
+    of ``CHUNK_WINDOWS`` at most, at least one per job."""
+    size = max(1, min(CHUNK_WINDOWS, -(-(n - first) // max(jobs, 1))))
+    return [(seed, a, min(a + size, n)) for a in range(first, n, size)]
+
+
+def read_chunk(
+    read: Callable[[int, int, CorpusCase, LoopRecord], T], chunk: tuple[int, int, int]
+) -> list[T]:
+    """``read(seed, index, case, record)`` of every window of a ``window_chunks`` chunk, in
+    index order; each record is dropped once read."""
+    seed, start, stop = chunk
+    got = {i: read(seed, i, case, rec) for i, case, rec in iter_cases(seed, range(start, stop))}
+    return [got[i] for i in range(start, stop)]
 
 
 def _clamp_share(op: np.ndarray, limit: float | None) -> float:
@@ -204,10 +269,11 @@ def _clamp_share(op: np.ndarray, limit: float | None) -> float:
     return float(np.mean(np.abs(op - limit) <= 1e-9))
 
 
-def _shows(case: CorpusCase, rec: LoopRecord) -> bool:
-    """Whether the record shows its label: the output rests at its limit for 20-90 % of a
-    saturated window and for at most 10 % of any other; a fault's error stands out of the
-    noise (``VISIBLE``); a sticky valve sticks and slips at least twice."""
+def _plausible(case: CorpusCase, rec: LoopRecord) -> bool:
+    """Whether the record can show its label before any twin is weighed: the output rests
+    at its limit for 20-90 % of a saturated window and for at most 10 % of any other; a
+    fault's error stands out of the noise (``VISIBLE``); a sticky valve sticks and slips at
+    least twice. A window with a twin shows its label only if ``_beside_twin`` holds too."""
     c = case.config.controller
     limits = [v for v in (c.op_max, c.op_min) if 0.0 < v < 100.0]
     ends = [float(np.mean(rec.op >= 99.99)), float(np.mean(rec.op <= 0.01))]
@@ -228,24 +294,29 @@ def _shows(case: CorpusCase, rec: LoopRecord) -> bool:
         starts = int(np.sum(moves[1:] & ~moves[:-1]))
         if starts < 2 and case.family["valve"] != "backlash":
             return False
-    shown = fault_and_twin(case, rec)
-    if shown is None:
-        return True
-    fault, twin = shown
+    return True
+
+
+def _beside_twin(case: CorpusCase, rec: LoopRecord, twin: LoopRecord) -> bool:
+    """Whether the fault shows against its twin's record (``VISIBLY_FAULTY``)."""
+    fault, without = fault_and_twin(case, rec, twin) or (1.0, 0.0)
     if case.cause == "aggressive_tuning":
-        return fault >= VISIBLY_FAULTY**2 * twin
-    return fault >= VISIBLY_FAULTY * twin
+        return fault >= VISIBLY_FAULTY**2 * without
+    return fault >= VISIBLY_FAULTY * without
 
 
-def fault_and_twin(case: CorpusCase, rec: LoopRecord) -> tuple[float, float] | None:
+def fault_and_twin(
+    case: CorpusCase, rec: LoopRecord, twin: LoopRecord | None = None
+) -> tuple[float, float] | None:
     """What ``VISIBLY_FAULTY`` weighs for a window and its twin (the same loop without the
-    fault, simulated here): the control error's σ (%), or for a loop near its stability limit
-    its ringing power (``ringing_power``); None for a window without a twin (ok, saturation).
-    ``benchmarks/cause_model_accuracy.py --strength`` reads the learned decision's accuracy
-    against their ratio."""
+    fault; its record ``twin``, simulated here when not given): the control error's σ (%), or
+    for a loop near its stability limit its ringing power (``ringing_power``); None for a
+    window without a twin (ok, saturation). ``benchmarks/cause_model_accuracy.py
+    --strength`` reads the learned decision's accuracy against their ratio."""
     if case.twin is None:
         return None
-    twin = simulate_loop(case.twin)
+    if twin is None:
+        twin = simulate_loop(case.twin)
     e, e_twin = rec.sp - rec.pv, twin.sp - twin.pv
     if case.cause == "aggressive_tuning":
         ts, tu = case.config.sample_time_s, case.ultimate_period_s

@@ -180,6 +180,14 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
 
         # x[k] = a·x[k-1] + w[k], the same sums in the same order as a loop would make them
         out += lfilter([1.0], [1.0, -a], w)
+    times = np.array([step[0] for step in d.steps])
+    if d.steps and not out.any() and np.all(times[1:] >= times[:-1]):
+        # steps alone, in time order (every corpus load made of steps): each sample holds the
+        # running sum of the sizes reached, the sums the loop below makes in the same order
+        # (np.cumsum adds one after another), without a pass over the record per step
+        reached = np.searchsorted(times, t, side="right")
+        sums = np.concatenate(([0.0], np.cumsum([step[1] for step in d.steps])))
+        return sums[reached]
     for t_step, size in d.steps:
         out += np.where(t >= t_step, size, 0.0)
     return out
@@ -328,13 +336,16 @@ def recorded_pv(
     ``interpolated`` the export draws straight lines between the stored values."""
     out = np.round(pv / quantum) * quantum if quantum > 0 else pv.copy()
     if compression > 0 and out.size:
-        held = out[0]
+        # on Python floats: the same arithmetic, without a numpy scalar per sample
+        values = out.tolist()
+        held = values[0]
         stored = [0]
-        for k in range(out.size):
-            if abs(out[k] - held) > compression:
-                held = out[k]
+        for k, value in enumerate(values):
+            if abs(value - held) > compression:
+                held = value
                 stored.append(k)
-            out[k] = held
+            values[k] = held
+        out = np.array(values, dtype=np.float64)
         if interpolated:
             if stored[-1] != out.size - 1:
                 stored.append(out.size - 1)
@@ -345,6 +356,19 @@ def recorded_pv(
 
 def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     """Simulate one closed loop and return the last ``n_samples`` samples after warm-up."""
+    rng, t, sp, load, out_d, noise = loop_inputs(cfg)
+    runs = ClosedLoop(cfg).run(sp.tolist(), load.tolist(), out_d.tolist(), noise.tolist())
+    pv, op, mv = (np.array(v, dtype=np.float64) for v in runs)
+    return loop_record(cfg, rng, t, sp, pv, op, mv)
+
+
+LoopInputs = tuple[np.random.Generator, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+"""What a run is driven by: the run's generator (its later draws make the stem sensor's noise),
+time (s), set point, load, output disturbance and measurement noise, one value per sample."""
+
+
+def loop_inputs(cfg: LoopConfig) -> LoopInputs:
+    """The signals a run of ``cfg`` is driven by, warm-up included, drawn from ``cfg.seed``."""
     rng = np.random.default_rng(cfg.seed)
     ts = cfg.sample_time_s
     n_total = cfg.n_samples + cfg.warmup_samples
@@ -359,11 +383,32 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
             out_d += sig
     noise = rng.normal(0.0, cfg.noise_std, n_total) if cfg.noise_std else np.zeros(n_total)
     sp = np.full(n_total, cfg.sp)
-    for t_step, value in cfg.sp_steps:
-        sp[t >= t_step + cfg.warmup_samples * ts] = value
+    starts = np.array([t_step + cfg.warmup_samples * ts for t_step, _ in cfg.sp_steps])
+    if starts.size and np.all(starts[1:] >= starts[:-1]):
+        # moves in time order (a ramp or a cascade master's output: hundreds of them): each
+        # sample takes the last move reached, as the assignments below leave it
+        reached = np.searchsorted(starts, t, side="right")
+        levels = np.array([value for _, value in cfg.sp_steps], dtype=np.float64)
+        sp = np.where(reached > 0, levels[np.maximum(reached - 1, 0)], sp)
+    else:
+        for t_step, value in cfg.sp_steps:
+            sp[t >= t_step + cfg.warmup_samples * ts] = value
+    return rng, t, sp, load, out_d, noise
 
-    runs = ClosedLoop(cfg).run(sp.tolist(), load.tolist(), out_d.tolist(), noise.tolist())
-    pv, op, mv = (np.array(v, dtype=np.float64) for v in runs)
+
+def loop_record(
+    cfg: LoopConfig,
+    rng: np.random.Generator,
+    t: FloatArray,
+    sp: FloatArray,
+    pv: FloatArray,
+    op: FloatArray,
+    mv: FloatArray,
+) -> LoopRecord:
+    """The record of a run (``loop_inputs``' ``rng``, ``t`` and ``sp``, the run's PV, OP and
+    MV): the samples after warm-up, PV and OP as the historian keeps them, MV with its
+    sensor's noise."""
+    n_total = t.size
     if cfg.mv_noise_std:
         mv = mv + rng.normal(0.0, cfg.mv_noise_std, n_total)
     keep = slice(cfg.warmup_samples, n_total)
