@@ -396,14 +396,15 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
                 pv = c.a_filter * (pv if k == 0 else pv_f) + c.one_less * pv
                 pv_f = pv
                 e = drive[0, j, :alive] - pv
-                u_unsat = integral + c.kc * e
+                push = c.kc * e
+                u_unsat = integral + push
                 u = np.minimum(np.maximum(u_unsat, c.op_min), c.op_max)
-                push = e * c.kc
-                windup = (
-                    (u == u_unsat)
-                    | ((u_unsat > c.op_max) & (push < 0))
-                    | ((u_unsat < c.op_min) & (push > 0))
-                )
+                # clamping anti-windup: integrate inside the limits (nothing clamped off) or
+                # when the error pulls back from the limit (clamped off and push of opposite
+                # signs); a difference of floats is 0 only if they are equal, and no product
+                # of a clamped excess (>= 1e-16) and a push (>= 1e-16, or 0) underflows
+                over = u_unsat - u
+                windup = (over * push < 0) | (over == 0)
                 integral = np.where(windup, integral + c.ki * e, integral)
                 m = u if within else _clip(u)
                 if sticky:
