@@ -87,9 +87,9 @@ def corpus_shapes(
     cache: Path | None = None,
 ) -> CorpusShapes:
     """The shape inputs of windows 0..n-1 of corpus ``seed`` on ``jobs`` processes, kept in
-    ``cache`` (a folder) when given: about 68 windows/s on 2 cores (2026-11-30). A window depends on its
-    seed and index only, so the largest cached file of fewer windows of the same seed is read
-    as their start and only the rest are drawn."""
+    ``cache`` (a folder) when given: about 68 windows/s on 2 cores (2026-11-30). A window
+    depends on its seed and index only, so the largest cached file of fewer windows of the
+    same seed is read as their start and only the rest are drawn."""
     path = cache / f"{_shapes_stem(seed)}{n}.npz" if cache else None
     if path is not None and path.is_file():
         return _load_shapes(path)
