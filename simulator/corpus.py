@@ -207,9 +207,10 @@ def iter_cases(
     """Windows ``indices`` of corpus ``seed`` as ``draw_case`` draws them, each with its
     index, in the order they are settled. Each pass simulates side by side
     (``batch_loop.simulate_loops``) the next draws of the windows not yet shown and as many
-    new windows as ``pass_samples`` holds, with every draw's twin: the twin of a draw that
-    fails before it is weighed is simulated for nothing, which costs less than another pass.
-    A window whose ``attempts`` draws all fail keeps its last."""
+    new windows as ``pass_samples`` holds, and from ``SPECULATIVE_TWINS`` draws on every
+    draw's twin beside them: the twin of a draw that fails before it is weighed is then
+    simulated for nothing, which costs less than another pass. A window whose ``attempts``
+    draws all fail keeps its last."""
     fresh = iter(dict.fromkeys(indices))
     retry: list[tuple[int, int]] = []
     while True:
@@ -229,17 +230,25 @@ def iter_cases(
             )
         if not draws:
             return
-        twins = [case.twin for _, _, case in draws if case.twin is not None]
+        # a few draws (one window's) are stepped alone: a twin is then simulated only once
+        # its draw is plausible, as draw_case always did
+        ahead = len(draws) >= SPECULATIVE_TWINS
+        twins = [case.twin for _, _, case in draws if case.twin is not None] if ahead else []
         recs = simulate_loops([case.config for _, _, case in draws] + twins)
         twin_recs = iter(recs[len(draws) :])
         for (i, attempt, case), rec in zip(draws, recs, strict=False):
-            twin = next(twin_recs) if case.twin is not None else None
-            shown = _plausible(case, rec) and (twin is None or _beside_twin(case, rec, twin))
+            twin = next(twin_recs) if ahead and case.twin is not None else None
+            shown = _plausible(case, rec)
+            if shown and case.twin is not None:
+                shown = _beside_twin(case, rec, twin or simulate_loop(case.twin))
             if shown or attempt + 1 >= attempts:
                 yield i, case, rec
             else:
                 retry.append((i, attempt + 1))
 
+
+SPECULATIVE_TWINS = 32
+"""From this many draws a pass simulates every twin beside its draw (``iter_cases``)."""
 
 CHUNK_WINDOWS = 4000
 """Windows one worker draws side by side at most (``window_chunks``): a pass of
@@ -299,7 +308,10 @@ def _plausible(case: CorpusCase, rec: LoopRecord) -> bool:
 
 def _beside_twin(case: CorpusCase, rec: LoopRecord, twin: LoopRecord) -> bool:
     """Whether the fault shows against its twin's record (``VISIBLY_FAULTY``)."""
-    fault, without = fault_and_twin(case, rec, twin) or (1.0, 0.0)
+    shown = fault_and_twin(case, rec, twin)
+    if shown is None:  # no twin: nothing to weigh
+        return True
+    fault, without = shown
     if case.cause == "aggressive_tuning":
         return fault >= VISIBLY_FAULTY**2 * without
     return fault >= VISIBLY_FAULTY * without
