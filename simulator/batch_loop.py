@@ -39,8 +39,8 @@ from plantcheck.simulator.loop import (
 
 BoolArray = NDArray[np.bool_]
 
-VALVE_FIELDS = {"kano": ("S", "J"), "he": ("fs", "fd"), "choudhury": ("S", "J"), "backlash": ("d",)}
-"""Each sticky model's friction parameters, in the order ``valves.FRICTION_FIELDS`` gives."""
+STICKY_MODELS = ("kano", "he", "choudhury", "backlash")
+"""The sticky valve models ``loop.make_valve`` builds (``LoopConfig.valve``)."""
 
 BATCH_SAMPLES = 20_000_000
 """Samples (warm-up included) of one batch at most: its loops' inputs and outputs take about
@@ -111,10 +111,10 @@ def _alone(lengths: Sequence[int], sticky_models: int) -> int:
 
 @dataclass
 class _Friction:
-    """A batch's sticky-valve parameters (one array per field of ``VALVE_FIELDS``, and what
-    the steps read from them: ``half``, half the band a stem lags behind its input, and
-    ``neg_S``), the nominal values and the generator of those whose friction drifts from stop
-    to stop (``valves.DriftingFriction``)."""
+    """A batch's sticky-valve parameters (an array per field of ``valves.FRICTION_FIELDS``,
+    and what the steps read from them: ``half``, half the band a stem lags behind its input,
+    and ``neg_S``), the nominal values and the generator of those whose friction drifts from
+    stop to stop (``valves.DriftingFriction``)."""
 
     valve: str
     values: dict[str, FloatArray]
@@ -351,7 +351,7 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
     full = _constants(cfgs, lead)
     within = bool(np.all(full.op_min >= 0.0) and np.all(full.op_max <= 100.0))
     sticky = []
-    for valve in VALVE_FIELDS:
+    for valve in STICKY_MODELS:
         members = np.array([b for b, c in enumerate(cfgs) if c.valve == valve], dtype=np.intp)
         if members.size:
             friction = _Friction.of(valve, [cfgs[b] for b in members])
