@@ -42,9 +42,12 @@ BoolArray = NDArray[np.bool_]
 STICKY_MODELS = ("kano", "he", "choudhury", "backlash")
 """The sticky valve models ``loop.make_valve`` builds (``LoopConfig.valve``)."""
 
-BATCH_SAMPLES = 20_000_000
-"""Samples (warm-up included) of one batch at most: its loops' inputs and outputs take about
-56 bytes a sample (1.1 GB here), what ``simulate_loop`` holds for them one loop at a time."""
+BATCH_SAMPLES = 8_000_000
+"""Samples (warm-up included) of one batch at most, and of one pass of ``corpus.iter_cases``:
+with their inputs, outputs and records about 120 bytes a sample, so a corpus worker peaks near
+1 GB (2 workers drawing shapes: 2.4 GB in use at the peak against 0.5 before, 73 windows a
+second; 20 million: 4.7 GB and 81 a second, and a machine with more cores runs a worker on
+each)."""
 
 STEP_COST = 12.0
 """What a sample of a batch costs whatever its size (numpy's call overhead), in samples of

@@ -252,7 +252,7 @@ SPECULATIVE_TWINS = 32
 
 CHUNK_WINDOWS = 4000
 """Windows one worker draws side by side at most (``window_chunks``): a pass of
-``iter_cases`` holds about 2,000, and the later passes take the retries of the earlier."""
+``iter_cases`` holds about 900, and the later passes take the retries of the earlier."""
 
 
 def window_chunks(seed: int, first: int, n: int, jobs: int) -> list[tuple[int, int, int]]:
