@@ -32,6 +32,7 @@ from plantcheck.simulator.loop import (
     FloatArray,
     LoopConfig,
     LoopRecord,
+    delay_samples,
     loop_inputs,
     loop_record,
     simulate_loop,
@@ -140,6 +141,10 @@ class _Friction:
         rngs = {b: random.Random(c.seed + 1) for b, c in enumerate(cfgs) if c.friction_spread > 0.0}
         spread = np.array([c.friction_spread for c in cfgs])
         nominal = {k: v.copy() for k, v in values.items()}
+        first = next(iter(values.values()))
+        derived = {"backlash": ("half",), "kano": ("half", "neg_S"), "choudhury": ("half", "neg_S")}
+        for name in derived.get(valve, ()):
+            values[name] = np.zeros_like(first)
         friction = cls(valve, values, nominal, spread, rngs)
         friction.derive(slice(None))
         return friction
@@ -150,10 +155,10 @@ class _Friction:
         halving are exact."""
         v = self.values
         if self.valve == "backlash":
-            v.setdefault("half", np.zeros_like(v["d"]))[at] = v["d"][at] / 2.0
+            v["half"][at] = v["d"][at] / 2.0
         elif self.valve in ("kano", "choudhury"):
-            v.setdefault("half", np.zeros_like(v["S"]))[at] = (v["S"][at] - v["J"][at]) / 2.0
-            v.setdefault("neg_S", np.zeros_like(v["S"]))[at] = -v["S"][at]
+            v["half"][at] = (v["S"][at] - v["J"][at]) / 2.0
+            v["neg_S"][at] = -v["S"][at]
 
     def narrow(self, n: int) -> None:
         """Keep the first ``n`` loops' parameters (views: a new friction still lands)."""
@@ -300,11 +305,11 @@ class _Loops:
         return _Loops(**{k: v[:n] for k, v in vars(self).items()})
 
 
-def _constants(cfgs: Sequence[LoopConfig], lead: int) -> _Loops:
-    """The constants of ``ClosedLoop.__init__`` and ``run`` for each loop, computed by the
-    same Python expressions. A branch a loop never takes gets neutral constants: an
-    integrator's x1 is 1.0·x1 + K·ts·u, a loop without a moving second lag keeps x2 by
-    1.0·x2 + 0.0·x1, an unfiltered PV is 0.0·PV' + 1.0·PV."""
+def _constants(cfgs: Sequence[LoopConfig]) -> tuple[int, _Loops]:
+    """The longest dead time in samples, and the constants of ``ClosedLoop.__init__`` and
+    ``run`` for each loop, computed by the same Python expressions. A branch a loop never
+    takes gets neutral constants: an integrator's x1 is 1.0·x1 + K·ts·u, a loop without a
+    moving second lag keeps x2 by 1.0·x2 + 0.0·x1, an unfiltered PV is 0.0·PV' + 1.0·PV."""
     proc = [c.process for c in cfgs]
     ts = [c.sample_time_s for c in cfgs]
     fopdt = [p.kind == "fopdt" for p in proc]
@@ -316,8 +321,9 @@ def _constants(cfgs: Sequence[LoopConfig], lead: int) -> _Loops:
     a_filter = _column(
         [math.exp(-c.sample_time_s / c.pv_filter_s) if c.pv_filter_s > 0 else 0.0 for c in cfgs]
     )
-    delay = np.array([max(0, round(p.theta_s / t)) for p, t in zip(proc, ts, strict=True)])
-    return _Loops(
+    delay = np.array([delay_samples(p, t) for p, t in zip(proc, ts, strict=True)])
+    lead = int(delay.max())
+    return lead, _Loops(
         lag2=np.array([p.tau2_s > 0 for p in proc]),
         zero=_column([p.zero_s for p in proc]),
         tau2=_column([p.tau2_s if p.tau2_s > 0 else 1.0 for p in proc]),
@@ -350,8 +356,7 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
     size = len(cfgs)
     inputs = [loop_inputs(c) for c in cfgs]
     lengths = [c.n_samples + c.warmup_samples for c in cfgs]
-    lead = max(max(0, round(c.process.theta_s / c.sample_time_s)) for c in cfgs)
-    full = _constants(cfgs, lead)
+    lead, full = _constants(cfgs)
     within = bool(np.all(full.op_min >= 0.0) and np.all(full.op_max <= 100.0))
     sticky = []
     for valve in STICKY_MODELS:

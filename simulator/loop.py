@@ -193,6 +193,11 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
     return out
 
 
+def delay_samples(p: Process, ts: float) -> int:
+    """The process' dead time in whole samples of ``ts`` (s), as the loop's queue holds it."""
+    return max(0, round(p.theta_s / ts))
+
+
 class ClosedLoop:
     """One closed loop advanced a sample at a time: PI controller → actuator/valve → process.
 
@@ -211,7 +216,7 @@ class ClosedLoop:
         if cfg.actuator is not None:
             valve = cfg.actuator.build(valve, ts)
         self.valve = valve
-        self.delay = max(0, round(p.theta_s / ts))
+        self.delay = delay_samples(p, ts)
         self.queue: deque[float] = (
             deque([cfg.u0] * self.delay, maxlen=self.delay) if self.delay else deque()
         )
