@@ -9,11 +9,12 @@ estimate (methods §6.1, the costly step: about 0.5-1 s a window) is made at mos
 weeks, and only when the previous diagnosis found the valve sticky too (one odd window costs no
 estimate). An estimate that fails the reliability rules is tried again after one period, then
 after twice as long each time, up to ``quantify_every_s``: a valve whose estimate stays
-unreliable costs one attempt an hour, not one every run. A loop's verdict (state, cause, ``since``)
-changes only when ``confirm`` consecutive diagnoses (default 2) find the same new cause, so one
-odd window does not flip the health table; every diagnosis is kept in the history whatever its
-cause. Verdicts are committed in batches (``storage.verdict_writer``: the verdicts of a quarter
-second in one transaction).
+unreliable costs one attempt an hour, not one every run. While the window is still filling
+(less stored than ``window_s``) it is tried at every run, as each holds more periods. A loop's
+verdict (state, cause, ``since``) changes only when ``confirm`` consecutive diagnoses (default
+2) find the same new cause, so one odd window does not flip the health table; every diagnosis
+is kept in the history whatever its cause. Verdicts are committed in batches
+(``storage.verdict_writer``: the verdicts of a quarter second in one transaction).
 
 Windows are kept in memory between runs (``storage.window_cache``): a run reads only the
 samples stored since the last one. The window ends at the loop's newest stored sample (source
@@ -341,7 +342,9 @@ class DiagnosisScheduler:
                 sched.dead_time_s,
             )
         if quantify:
-            self._schedule_quantification(st, payload, sched.period_s)
+            # a window still filling holds more periods at the next run
+            filling = end_us - start_us < int(sched.window_s * 1e6)
+            self._schedule_quantification(st, payload, sched.period_s, filling)
         elif payload["cause"] in QUANTIFIED_CAUSES and payload.get("chain") != "advanced":
             payload["notes"].append(
                 "S and J not estimated in this window: "
@@ -372,14 +375,23 @@ class DiagnosisScheduler:
         return st.baseline
 
     def _schedule_quantification(
-        self, st: LoopJobState, payload: dict[str, Any], period_s: float
+        self, st: LoopJobState, payload: dict[str, Any], period_s: float, filling: bool
     ) -> None:
-        """Set when the loop's next S/J estimate is due after a diagnosis that could make one."""
+        """Set when the loop's next S/J estimate is due after a diagnosis that could make one.
+
+        An unreliable estimate from a window still filling (a service just started, a loop just
+        added) is tried again at the next run without backing off: that window is one period
+        longer, and the commonest failure there is too few oscillation periods (at least 10,
+        methods §6.1). Backing off then put the first S tens of minutes after the data allowed
+        it (the bundled plant over Modbus at 20x: FIC801's S came
+        80 s after its cause, at 114 s, where 10 of its 153-s periods take 77 s)."""
         stiction = payload.get("stiction") or {}
         attempted = "quantification" in stiction or "op_pv_estimate" in stiction
         if stiction.get("S") is not None:  # reliable (or measured from MV)
             st.quantify_backoff_s = 0.0
             st.quantify_due = time.monotonic() + self.quantify_every_s
+        elif attempted and filling:
+            st.quantify_due = time.monotonic() + period_s
         elif attempted:
             st.quantify_backoff_s = min(
                 self.quantify_every_s, max(period_s, 2 * st.quantify_backoff_s)

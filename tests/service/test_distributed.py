@@ -261,9 +261,8 @@ def test_workers_standby_and_collector(pg_cluster: PgCluster, tmp_path: Path, pr
     os.kill(procs.procs["collector"].pid, signal.SIGKILL)
     t_kill = time.monotonic()
     _wait("run B leading", lambda: (_ready(b) or {}).get("role") == "leader", 30, procs)
-    takeover_s = time.monotonic() - t_kill
-    print(f"takeover after {takeover_s:.2f} s")
-    assert takeover_s < 5.0
+    # how fast is benchmarks/takeover.py's to measure: a test asserts no time
+    print(f"takeover after {time.monotonic() - t_kill:.2f} s")
     taken_us = time.time_ns() // 1000
     _wait(
         "every loop diagnosed again under the new leader",

@@ -106,19 +106,21 @@ def test_store_error_reaches_each_job(tmp_path: Any) -> None:
 
 def test_unreliable_estimates_back_off() -> None:
     """An S/J estimate that fails the reliability rules is retried after one period, then
-    twice as long each time up to ``quantify_every_s``; a reliable one waits the full time."""
+    twice as long each time up to ``quantify_every_s``; a reliable one waits the full time.
+    While the window is still filling, every run tries again (each window holds more periods)
+    and the back-off starts from one period once it is full."""
     sched = DiagnosisScheduler.__new__(DiagnosisScheduler)
     sched.quantify_every_s = 3600.0
     st = LoopJobState()
     unreliable = {"stiction": {"S": None, "quantification": {"reliable": False}}}
     waits = []
-    for _ in range(5):
+    for filling in (True, True, True, False, False, False, False, False):
         t = time.monotonic()
-        sched._schedule_quantification(st, unreliable, 600.0)
+        sched._schedule_quantification(st, unreliable, 600.0, filling)
         waits.append(round(st.quantify_due - t))
-    assert waits == [600, 1200, 2400, 3600, 3600]
-    sched._schedule_quantification(st, {"stiction": {"S": 2.0}}, 600.0)
+    assert waits == [600, 600, 600, 600, 1200, 2400, 3600, 3600]
+    sched._schedule_quantification(st, {"stiction": {"S": 2.0}}, 600.0, False)
     assert st.quantify_backoff_s == 0 and st.quantify_due > time.monotonic() + 3599
     before = st.quantify_due
-    sched._schedule_quantification(st, {"cause": "ok"}, 600.0)  # no attempt: unchanged
+    sched._schedule_quantification(st, {"cause": "ok"}, 600.0, True)  # no attempt: unchanged
     assert st.quantify_due == before
