@@ -24,12 +24,17 @@ fills), so a second run only fits.
 
 from __future__ import annotations
 
+# ruff: noqa: E402 (one BLAS thread is asked for before numpy loads, below the first imports)
 import argparse
 import math
 import multiprocessing
 import sys
 from dataclasses import replace
 from pathlib import Path
+
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as `model fit` does: the evidence drawn depends on it
 
 import numpy as np
 from numpy.typing import NDArray

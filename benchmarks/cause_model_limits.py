@@ -22,12 +22,17 @@ about an hour on two cores).
 
 from __future__ import annotations
 
+# ruff: noqa: E402 (one BLAS thread is asked for before numpy loads, below the first imports)
 import argparse
 import math
 import multiprocessing
 import time
 from collections import Counter
 from pathlib import Path
+
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as `model fit` does: the evidence drawn depends on it
 
 import numpy as np
 from cause_model_accuracy import accuracy_per_family

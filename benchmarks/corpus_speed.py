@@ -16,10 +16,11 @@ import argparse
 import os
 import time
 
-import numpy as np
+from plantcheck.service.blas_threads import one_blas_thread
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+one_blas_thread()  # before numpy loads, as `model fit` does: the evidence depends on it
+
+import numpy as np  # noqa: E402
 
 from plantcheck.service.cause_model_fit import corpus_evidence  # noqa: E402
 from plantcheck.service.shape_model_fit import corpus_shapes  # noqa: E402

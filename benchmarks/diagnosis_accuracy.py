@@ -8,6 +8,11 @@ table loop by loop (needs ../shared/data; skipped with a note when absent).
 
 from __future__ import annotations
 
+# ruff: noqa: E402 (one BLAS thread is asked for before numpy loads, below the first imports)
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as the CLI does: a diagnosis' last digits depend on it
+
 import argparse
 import collections
 import sys

@@ -26,14 +26,15 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-import plantcheck.diagnosis.chain as chain_module
-from plantcheck.diagnosis import diagnose
-from plantcheck.service.allocator import tune_allocator
-from plantcheck.simulator.cases import sticky_flow_config
-from plantcheck.simulator.loop import simulate_loop
+from plantcheck.service.blas_threads import one_blas_thread
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+one_blas_thread()  # before numpy loads, as the CLI and the workers do
+
+import plantcheck.diagnosis.chain as chain_module  # noqa: E402
+from plantcheck.diagnosis import diagnose  # noqa: E402
+from plantcheck.service.allocator import tune_allocator  # noqa: E402
+from plantcheck.simulator.cases import sticky_flow_config  # noqa: E402
+from plantcheck.simulator.loop import simulate_loop  # noqa: E402
 
 
 def window(n: int, sp_steps: int = 0) -> tuple[object, ...]:

@@ -20,6 +20,11 @@ sticky windows whose valve moves in more than a tenth of the samples, and how ma
 
 from __future__ import annotations
 
+# ruff: noqa: E402 (one BLAS thread is asked for before numpy loads, below the first imports)
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as the CLI does: a diagnosis' last digits depend on it
+
 import argparse
 import collections
 import time

@@ -19,6 +19,11 @@ one outlier decides (12 cases, about 1.5 minutes, suit a quick comparison of two
 
 from __future__ import annotations
 
+# ruff: noqa: E402 (one BLAS thread is asked for before numpy loads, below the first imports)
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as the CLI does: a diagnosis' last digits depend on it
+
 import argparse
 import collections
 import time

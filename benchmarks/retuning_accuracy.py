@@ -18,6 +18,11 @@ The loops are ``simulator/tuning_cases.py``'s; nothing here is tuned on real rec
 
 from __future__ import annotations
 
+# ruff: noqa: E402 (one BLAS thread is asked for before numpy loads, below the first imports)
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as the CLI does: a diagnosis' last digits depend on it
+
 import argparse
 import time
 from dataclasses import dataclass, fields

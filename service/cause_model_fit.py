@@ -17,14 +17,8 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import multiprocessing
-import os
-import sys
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from functools import partial
-from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +31,7 @@ from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
 from plantcheck.diagnosis.signal_shape import ShapeInput, shape_log_probabilities
 from plantcheck.service.corpus_cache import cached_start
+from plantcheck.service.corpus_draw import read_windows
 from plantcheck.service.shape_model_fit import (
     EPOCHS,
     SHAPE_VERSION,
@@ -51,8 +46,6 @@ from plantcheck.simulator.corpus import (
     CORPUS_VERSION,
     FAMILY_KEYS,
     CorpusCase,
-    read_chunk,
-    window_chunks,
 )
 from plantcheck.simulator.loop import LoopRecord
 
@@ -190,32 +183,22 @@ def _draw_evidence(
     seed: int, first: int, n: int, jobs: int | None, progress: Callable[[str], None] | None
 ) -> CorpusEvidence:
     """The evidence of windows ``first``..n-1 of corpus ``seed``."""
-    jobs = jobs or os.cpu_count() or 1
     rows: list[list[float]] = []
     ys: list[int] = []
     rules: list[str] = []
     fams: dict[str, list[str]] = {k: [] for k in FAMILY_KEYS}
     lengths: list[int] = []
     skipped = 0
-    t0 = time.monotonic()
-    ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
-    with ctx.Pool(jobs) as pool:
-        chunks = pool.imap(partial(read_chunk, _evidence), window_chunks(seed, first, n, jobs))
-        for drawn, (y, rule, vec, family, ns) in enumerate(chain.from_iterable(chunks), 1):
-            if vec is None:
-                skipped += 1
-            else:
-                rows.append(vec)
-                ys.append(y)
-                rules.append(rule)
-                lengths.append(ns)
-                for k in FAMILY_KEYS:
-                    fams[k].append(family[k])
-            done = first + drawn
-            if progress and (done % 500 == 0 or done == n):
-                rate = drawn / max(time.monotonic() - t0, 1e-9)
-                progress(f"corpus seed {seed}: {done}/{n} windows, {rate:.0f}/s, "
-                         f"about {(n - done) / rate:.0f} s left")  # fmt: skip
+    for y, rule, vec, family, ns in read_windows(_evidence, seed, first, n, jobs, progress):
+        if vec is None:
+            skipped += 1
+            continue
+        rows.append(vec)
+        ys.append(y)
+        rules.append(rule)
+        lengths.append(ns)
+        for k in FAMILY_KEYS:
+            fams[k].append(family[k])
     return CorpusEvidence(
         np.array(rows, dtype=np.float64).reshape(-1, len(FEATURE_NAMES)),
         np.array(ys, dtype=np.int64),

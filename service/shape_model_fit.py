@@ -9,14 +9,9 @@ weights.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import partial
-from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -28,12 +23,11 @@ from plantcheck.diagnosis.cause_model import blended, safe_log
 from plantcheck.diagnosis.chain import chain_shape_input
 from plantcheck.diagnosis.signal_shape import SCALARS, SHAPE_SAMPLES, ShapeNet
 from plantcheck.service.corpus_cache import cached_start
+from plantcheck.service.corpus_draw import read_windows
 from plantcheck.simulator.corpus import (
     CLASSES,
     CORPUS_VERSION,
     CorpusCase,
-    read_chunk,
-    window_chunks,
 )
 from plantcheck.simulator.loop import LoopRecord
 
@@ -137,19 +131,10 @@ def _draw_shapes(
     judged = np.zeros(count, dtype=bool)
     if count == 0:
         return CorpusShapes(chans, scalars, y, judged)
-    t0 = time.monotonic()
-    ctx = multiprocessing.get_context("spawn" if sys.platform == "darwin" else "fork")
-    jobs = jobs or os.cpu_count() or 1
-    with ctx.Pool(jobs) as pool:
-        chunks = pool.imap(partial(read_chunk, _shape), window_chunks(seed, first, n, jobs))
-        for i, (cls, c, s, ok) in enumerate(chain.from_iterable(chunks)):
-            # the channels went through float16 in shape_input: stored exactly
-            chans[i], scalars[i], y[i], judged[i] = c, s, cls, ok
-            done = first + i + 1
-            if progress and (done % 2000 == 0 or done == n):
-                rate = (i + 1) / max(time.monotonic() - t0, 1e-9)
-                progress(f"corpus seed {seed} shapes: {done}/{n} windows, {rate:.0f}/s, "
-                         f"about {(n - done) / rate:.0f} s left")  # fmt: skip
+    shapes = read_windows(_shape, seed, first, n, jobs, progress, "shape windows")
+    for i, (cls, c, s, ok) in enumerate(shapes):
+        # the channels went through float16 in shape_input: stored exactly
+        chans[i], scalars[i], y[i], judged[i] = c, s, cls, ok
     return CorpusShapes(chans, scalars, y, judged)
 
 

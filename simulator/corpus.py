@@ -263,12 +263,18 @@ def window_chunks(seed: int, first: int, n: int, jobs: int) -> list[tuple[int, i
 
 
 def read_chunk(
-    read: Callable[[int, int, CorpusCase, LoopRecord], T], chunk: tuple[int, int, int]
+    read: Callable[[int, int, CorpusCase, LoopRecord], T],
+    chunk: tuple[int, int, int],
+    each: Callable[[], None] | None = None,
 ) -> list[T]:
     """``read(seed, index, case, record)`` of every window of a ``window_chunks`` chunk, in
-    index order; each record is dropped once read."""
+    index order; each record is dropped once read, and ``each()`` called (a progress count)."""
     seed, start, stop = chunk
-    got = {i: read(seed, i, case, rec) for i, case, rec in iter_cases(seed, range(start, stop))}
+    got = {}
+    for i, case, rec in iter_cases(seed, range(start, stop)):
+        got[i] = read(seed, i, case, rec)
+        if each is not None:
+            each()
     return [got[i] for i in range(start, stop)]
 
 

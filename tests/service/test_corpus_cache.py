@@ -1,14 +1,20 @@
 """A cached corpus file of fewer windows starts a longer one (``service.corpus_cache``): what
-is read from it plus what is drawn after it equals the longer corpus drawn at once."""
+is read from it plus what is drawn after it equals the longer corpus drawn at once. Windows are
+read by worker processes in index order, with progress while they are drawn
+(``service.corpus_draw``)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
 from plantcheck.service.cause_model_fit import corpus_evidence
+from plantcheck.service.corpus_draw import read_windows
 from plantcheck.service.shape_model_fit import corpus_shapes
+from plantcheck.simulator.corpus import CorpusCase, draw_case
+from plantcheck.simulator.loop import LoopRecord
 
 
 def _only(folder: Path, stem: str) -> Path:
@@ -47,3 +53,19 @@ def test_more_evidence_draws_only_the_windows_beyond_the_cached_ones(tmp_path: P
     np.testing.assert_array_equal(grown.y, whole.y)
     np.testing.assert_array_equal(grown.samples, whole.samples)
     assert (grown.rules, grown.family, grown.skipped) == (whole.rules, whole.family, whole.skipped)
+
+
+def _label(seed: int, index: int, case: CorpusCase, rec: LoopRecord) -> tuple[int, str, int]:
+    return index, case.cause, len(rec.pv)
+
+
+def test_windows_read_by_two_workers_in_order_with_progress_while_they_draw() -> None:
+    """``read_windows`` gives what the windows drawn one by one give, in index order, and
+    tells its progress as the workers read, not only when a chunk ends."""
+    said: list[str] = []
+    got = list(read_windows(_label, 303, 2, 12, jobs=2, progress=said.append, every_s=0.0))
+    want = [_label(303, i, *draw_case(303, i)) for i in range(2, 12)]
+    assert got == want
+    assert said[-1].startswith("corpus seed 303: 12/12 windows,"), said
+    # with every_s 0 a line comes at each wait for a chunk, each counted as the workers read
+    assert len(said) >= 2 and all(re.search(r": \d+/12 windows, \d+/s, ", s) for s in said)
