@@ -382,9 +382,11 @@ class DiagnosisScheduler:
         An unreliable estimate from a window still filling (a service just started, a loop just
         added) is tried again at the next run without backing off: that window is one period
         longer, and the commonest failure there is too few oscillation periods (at least 10,
-        methods §6.1). Backing off then put the first S tens of minutes after the data allowed
-        it (the bundled plant over Modbus at 20x: FIC801's S came
-        80 s after its cause, at 114 s, where 10 of its 153-s periods take 77 s)."""
+        methods §6.1). Backing off then put the first S long after the data allowed it: the
+        bundled plant over Modbus at 20x showed FIC801's S 80 s after its cause, at 114 s,
+        where 10 of its 153-s periods take 77 s. With 2-h windows every 10 min, a valve
+        cycling every 5.5 min (10 periods in 55 min), sticky from the second run on, was tried
+        at 20, 30, 50 and 90 min; now at every run from 20 min, so S comes at 60."""
         stiction = payload.get("stiction") or {}
         attempted = "quantification" in stiction or "op_pv_estimate" in stiction
         if stiction.get("S") is not None:  # reliable (or measured from MV)
