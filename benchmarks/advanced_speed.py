@@ -7,13 +7,13 @@ window on one core; target (issue 4): <= 10 ms. Pin with ``taskset -c 0``.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import time
 from dataclasses import replace
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as the CLI and the workers do
 
 from plantcheck.diagnosis import diagnose_advanced  # noqa: E402
 from plantcheck.service.allocator import tune_allocator  # noqa: E402

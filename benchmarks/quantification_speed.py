@@ -13,8 +13,9 @@ import os
 import statistics
 import time
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+from plantcheck.service.blas_threads import one_blas_thread
+
+one_blas_thread()  # before numpy loads, as the CLI and the workers do
 
 from plantcheck.diagnosis.oscillation import detect_oscillation  # noqa: E402
 from plantcheck.diagnosis.quantification import quantify_stiction  # noqa: E402

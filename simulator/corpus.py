@@ -240,7 +240,9 @@ def iter_cases(
             twin = next(twin_recs) if ahead and case.twin is not None else None
             shown = _plausible(case, rec)
             if shown and case.twin is not None:
-                shown = _beside_twin(case, rec, twin or simulate_loop(case.twin))
+                shown = _beside_twin(
+                    case, rec, twin if twin is not None else simulate_loop(case.twin)
+                )
             if shown or attempt + 1 >= attempts:
                 yield i, case, rec
             else:
