@@ -84,10 +84,15 @@ def test_one_full_disk_holds_samples_in_memory_and_writes_them_when_freed(
                 sent += 100
                 await asyncio.sleep(0.1)
             assert w.dropped == 0 and w.held > 0
+            # the back-off, doubled at every failed try, stays within retry_max_s: both are
+            # tried again within a second of the disk being freed (how soon writing resumes
+            # is measured by benchmarks/disk_faults.py, not asserted on this machine's clock)
+            now = time.monotonic()
+            assert w._next_try - now <= 1.0 and w._buffer_next_try - now <= 1.0
             disk.free()
-            t_free = time.monotonic()
-            await _until(lambda: w.stats.store_up and w.held == 0 and len(w.buffer) == 0)
-            assert time.monotonic() - t_free < 10.0
+            await _until(
+                lambda: w.stats.store_up and w.held == 0 and len(w.buffer) == 0, timeout_s=60.0
+            )
             assert w.stats.buffer_up
             await w.stop()
             assert await store.count_samples([tag]) == sent
