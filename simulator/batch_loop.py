@@ -141,24 +141,26 @@ class _Friction:
         rngs = {b: random.Random(c.seed + 1) for b, c in enumerate(cfgs) if c.friction_spread > 0.0}
         spread = np.array([c.friction_spread for c in cfgs])
         nominal = {k: v.copy() for k, v in values.items()}
-        first = next(iter(values.values()))
-        derived = {"backlash": ("half",), "kano": ("half", "neg_S"), "choudhury": ("half", "neg_S")}
-        for name in derived.get(valve, ()):
-            values[name] = np.zeros_like(first)
         friction = cls(valve, values, nominal, spread, rngs)
         friction.derive(slice(None))
         return friction
 
     def derive(self, at: slice | int) -> None:
-        """``half`` and ``neg_S`` of the loops ``at`` from their parameters. The models
-        compute d·(S − J)/2 with d = ±1, the same value as d·half: a sign change and a
-        halving are exact."""
+        """``half`` and ``neg_S`` of the loops ``at`` from their parameters (made, over every
+        loop, by the first call). The models compute d·(S − J)/2 with d = ±1, the same value
+        as d·half: a sign change and a halving are exact."""
         v = self.values
         if self.valve == "backlash":
-            v["half"][at] = v["d"][at] / 2.0
+            derived = {"half": v["d"][at] / 2.0}
         elif self.valve in ("kano", "choudhury"):
-            v["half"][at] = (v["S"][at] - v["J"][at]) / 2.0
-            v["neg_S"][at] = -v["S"][at]
+            derived = {"half": (v["S"][at] - v["J"][at]) / 2.0, "neg_S": -v["S"][at]}
+        else:
+            return
+        for name, value in derived.items():
+            if name in v:
+                v[name][at] = value
+            else:
+                v[name] = np.array(value, dtype=np.float64)
 
     def narrow(self, n: int) -> None:
         """Keep the first ``n`` loops' parameters (views: a new friction still lands)."""
