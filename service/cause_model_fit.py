@@ -365,11 +365,13 @@ def fit_model(
     seeds: Sequence[int] = (FIT_SEED, CALIBRATION_SEED, CHECK_SEED),
     tree_seed: int = 0,
     shape: bool = True,
+    shape_seed: int = 0,
 ) -> FitReport:
     """Fit on ``windows`` windows of the fit seed, calibrate and check on
     ``side_windows(windows)`` of the other two; the exported model and its check figures.
     ``tree_seed``: LightGBM's seed for its row and column subsampling; ``shape``: fit the
-    shape network and blend it in (``service.shape_model_fit``)."""
+    shape network and blend it in (``service.shape_model_fit``), its weights drawn and its
+    batches shuffled from ``shape_seed``."""
     say = progress or (lambda _m: None)
     fit_s, cal_s, chk_s = seeds
     small = side_windows(windows)
@@ -402,8 +404,10 @@ def fit_model(
     if shape:
         fit_shapes = corpus_shapes(fit_s, SHAPE_WINDOW_FACTOR * windows, jobs, say, cache)
         cal_shapes = corpus_shapes(cal_s, small, jobs, say, cache)
-        net = fit_shape_net(fit_shapes, progress=say)
-        model = with_blend(replace(model, shape=net), cal, cal_shapes, fit_shapes.y.size)
+        net = fit_shape_net(fit_shapes, seed=shape_seed, progress=say)
+        model = with_blend(
+            replace(model, shape=net), cal, cal_shapes, fit_shapes.y.size, seed=shape_seed
+        )
         say(f"blend: shape network weight {model.shape_weight}, "
             f"temperature {model.blend_temperature:.3f}")  # fmt: skip
     chk_shapes = corpus_shapes(chk_s, small, jobs, say, cache) if shape else None
@@ -432,16 +436,21 @@ def save_model(model: CauseModel, path: Path) -> None:
 
 
 def with_blend(
-    model: CauseModel, cal: CorpusEvidence, cal_shapes: CorpusShapes, fit_windows: int
+    model: CauseModel,
+    cal: CorpusEvidence,
+    cal_shapes: CorpusShapes,
+    fit_windows: int,
+    seed: int = 0,
 ) -> CauseModel:
     """``model`` (trees and shape network) with the network's weight in the blend and the
     blend's temperature that the calibration windows (``cal``, ``cal_shapes``) give;
-    ``fit_windows``: the windows the network was fitted on (kept in the model's meta)."""
+    ``fit_windows`` and ``seed``: the windows the network was fitted on and its seed (kept in
+    the model's meta)."""
     log_trees = _log_trees(model, cal)
     log_shape = shape_log_probabilities_of(model, cal_shapes)
     weight, temperature = fit_blend(log_trees, log_shape, cal.y)
     shape_meta = {"version": SHAPE_VERSION, "library": "torch", "epochs": EPOCHS,
-                  "threads": SHAPE_THREADS, "windows": int(fit_windows)}  # fmt: skip
+                  "threads": SHAPE_THREADS, "windows": int(fit_windows), "seed": seed}  # fmt: skip
     return replace(model, shape_weight=weight, blend_temperature=temperature,
                    shape_base=tuple(log_shape.mean(axis=0).tolist()),
                    meta={**model.meta, "shape": shape_meta})  # fmt: skip

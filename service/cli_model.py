@@ -52,6 +52,14 @@ def fit_cmd(
             "other seeds show how far one fit's readings are a draw).",
         ),
     ] = 0,
+    shape_seed: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="PyTorch's seed for the shape network's first weights and its batches (the "
+            "shipped fits use 0; other seeds show how far the blend's readings are a draw).",
+        ),
+    ] = 0,
     shape: Annotated[
         bool,
         typer.Option(
@@ -97,6 +105,7 @@ def fit_cmd(
         cache,
         tree_seed=tree_seed,
         shape=shape,
+        shape_seed=shape_seed,
     )
     save_model(rep.model, out)
     figures = {

@@ -206,7 +206,7 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
 
     out = tmp_path / "m.npz"
     r = run_cli("model", "fit", "--windows", "60", "--out", str(out), "--jobs", "2", "--json",
-                "--tree-seed", "3")  # fmt: skip
+                "--tree-seed", "3", "--shape-seed", "2")  # fmt: skip
     assert r.returncode == 0, r.stderr
     figures = json.loads(r.stdout)
     assert figures["windows"]["fit"] >= 55 and 0.0 <= figures["check_macro_f1"] <= 1.0
@@ -216,6 +216,7 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     assert model.meta["seeds"]["trees"] == 3 and model.meta["params"]["num_threads"] == 2
     # the shape network, blended in by the weight the calibration windows gave
     assert model.shape is not None and model.meta["shape"]["library"] == "torch"
+    assert model.meta["shape"]["seed"] == 2
     assert model.shape_weight == figures["shape_weight"] and 0.0 <= model.shape_weight <= 1.0
     assert "shape network: epoch 15/15" in r.stderr
 
