@@ -7,7 +7,11 @@ left out one at a time: a model fitted without a family's windows, tested on tha
 check windows, beside the full model on the same windows.
 
     python benchmarks/cause_model_accuracy.py [--windows 64000] [--left-out] [--png FILE]
-        [--check-seed 404] [--strength]
+        [--check-seed 404] [--strength] [--model FILE]
+
+``--model FILE``: read another model file than the shipped one (``plantcheck model fit --out
+FILE``, say with ``--tree-seed`` or ``--shape-seed``: how far one fit's figures are a draw).
+The trees' and the shape network's figures alone are printed beside the blend's.
 
 ``--check-seed``: read another seed's windows than the fit's check seed (303, which many
 choices have read): 404 was drawn in the thirty-second session and read by no choice before.
@@ -39,7 +43,7 @@ one_blas_thread()  # before numpy loads, as `model fit` does: the evidence drawn
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.cause_model import shipped_cause_model
+from plantcheck.diagnosis.cause_model import load_cause_model, shipped_cause_model
 from plantcheck.service.cause_model_fit import (
     CALIBRATION_SEED,
     CHECK_SEED,
@@ -56,6 +60,7 @@ from plantcheck.service.cause_model_fit import (
     model_probabilities,
     raw_scores,
     reliability,
+    shape_log_probabilities_of,
     side_windows,
     with_blend,
 )
@@ -130,18 +135,22 @@ def main() -> None:
                     help=f"the seed whose windows are read (default {CHECK_SEED})")  # fmt: skip
     ap.add_argument("--strength", action="store_true",
                     help="accuracy per band of how strongly each fault shows (5 min)")  # fmt: skip
+    ap.add_argument("--model", type=Path, default=None,
+                    help="model file to read (default: the shipped one)")  # fmt: skip
     a = ap.parse_args()
     if a.check_seed in (FIT_SEED, CALIBRATION_SEED):
         sys.exit(f"--check-seed {a.check_seed}: the model was fitted or calibrated on it")
     png = a.png
-    if png is None and a.check_seed == CHECK_SEED:
+    if png is None and a.check_seed == CHECK_SEED and a.model is None:
         png = Path(__file__).with_name("reliability.png")
     names = {f"{k}={v}": (k, v) for k, v in LEFT_OUT}
     unknown = [o for o in a.only or [] if o not in names]
     if unknown:  # before the check figures: a typo costs no wait
         sys.exit(f"--only {unknown[0]}: not one of LEFT_OUT ({', '.join(names)})")
     families = tuple(names[o] for o in a.only or []) or LEFT_OUT
-    model = shipped_cause_model()
+    if a.model is not None and not a.model.is_file():
+        sys.exit(f"--model {a.model}: no such file")
+    model = load_cause_model(a.model) if a.model is not None else shipped_cause_model()
     if model is None:
         sys.exit("no shipped model: run plantcheck model fit first")
     small = side_windows(a.windows)
@@ -158,6 +167,12 @@ def main() -> None:
     print(f"check seed {a.check_seed}: {chk.y.size} windows ({chk.skipped} with nothing to weigh)")
     print(f"learned macro-F1 {mf1:.3f}, accuracy {np.mean(pred == chk.y):.3f}; "
           f"rules macro-F1 {rf1:.3f}, accuracy {np.mean(rules == chk.y):.3f}")  # fmt: skip
+    trees = raw_scores(model, chk.x).argmax(axis=1)
+    alone = [f"trees alone {macro_f1(chk.y, trees, len(CLASSES))[0]:.3f}"]
+    if chk_shapes is not None:
+        net = shape_log_probabilities_of(model, chk_shapes).argmax(axis=1)
+        alone.append(f"shape network alone {macro_f1(chk.y, net, len(CLASSES))[0]:.3f}")
+    print("; ".join(alone))
     print("class".ljust(22) + "learned F1   rules F1")
     for cls, f, r in zip(CLASSES, f1s, rf1s, strict=True):
         print(f"{cls:22s}{f:10.3f}{r:11.3f}")
