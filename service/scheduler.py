@@ -343,8 +343,7 @@ class DiagnosisScheduler:
             )
         if quantify:
             # a window still filling holds more periods at the next run
-            filling = end_us - start_us < int(sched.window_s * 1e6)
-            self._schedule_quantification(st, payload, sched.period_s, filling)
+            self._schedule_quantification(st, payload, sched.period_s, latest.filling)
         elif payload["cause"] in QUANTIFIED_CAUSES and payload.get("chain") != "advanced":
             payload["notes"].append(
                 "S and J not estimated in this window: "

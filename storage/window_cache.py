@@ -94,15 +94,18 @@ class LatestWindow:
     start_us: int
     end_us: int
     notes: list[str]
+    filling: bool = False
+    """Shorter than the configured window: all the data stored so far (a service just
+    started, a loop just added), so the next read holds more."""
 
 
 def window_bounds(
     pv_span: tuple[int, int] | None, now_us: int, window_us: int
-) -> tuple[int, int, list[str]]:
-    """(start µs, end µs, notes) of a loop's window of ``window_us`` given its oldest and
-    newest stored PV sample: ending just after the newest (the plant's own time base), shortened
-    to the data stored so far; ending now when the newest is older than a window (the chain
-    then reports the missing data)."""
+) -> tuple[int, int, list[str], bool]:
+    """(start µs, end µs, notes, filling) of a loop's window of ``window_us`` given its oldest
+    and newest stored PV sample: ending just after the newest (the plant's own time base),
+    shortened to the data stored so far (``filling``); ending now when the newest is older than
+    a window (the chain then reports the missing data)."""
     if pv_span is None or pv_span[1] < now_us - window_us:
         return (
             now_us - window_us,
@@ -112,16 +115,18 @@ def window_bounds(
                 if pv_span is not None
                 else "no PV sample stored yet"
             ],
+            False,
         )
     end_us = pv_span[1] + 1
     start_us = max(end_us - window_us, pv_span[0])
+    filling = start_us > end_us - window_us
     notes = []
-    if start_us > end_us - window_us:
+    if filling:
         notes.append(
             f"window shortened to the {(end_us - start_us) / 1e6:.0f} s of data stored so far "
             f"(configured {window_us / 1e6:g} s)"
         )
-    return start_us, end_us, notes
+    return start_us, end_us, notes, filling
 
 
 OPEN_END_US = 1 << 62
@@ -164,7 +169,7 @@ class WindowCache:
             fresh = await self.store.read_series(loop, from_us, OPEN_END_US, kept=True)
             pv_t = fresh.get("pv", c.series.get("pv", (np.empty(0, np.int64), None)))[0]
             if pv_t.size:
-                start_us, end_us, notes = window_bounds(
+                start_us, end_us, notes, filling = window_bounds(
                     (c.oldest_pv_us, int(pv_t[-1])), now_us, window_us
                 )
                 if self._usable(c, start_us, end_us) and await self._complete(
@@ -176,12 +181,13 @@ class WindowCache:
                         start_us,
                         end_us,
                         notes,
+                        filling,
                     )
         span = await self.store.sample_span_us(loop, "pv", kept=True)
-        start_us, end_us, notes = window_bounds(span, now_us, window_us)
+        start_us, end_us, notes, filling = window_bounds(span, now_us, window_us)
         oldest = None if span is None else span[0]
         win = await self._read_whole(loop, start_us, end_us, hold, oldest)
-        return LatestWindow(win, start_us, end_us, notes)
+        return LatestWindow(win, start_us, end_us, notes, filling)
 
     def _take(self, loop: LoopRow, hold: tuple[str, ...]) -> CachedWindow | None:
         """The loop's cached window (removed from the cache until put back), if it was read

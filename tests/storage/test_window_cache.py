@@ -100,7 +100,8 @@ def test_cached_windows_equal_whole_reads(db_url: str) -> None:
 
 def test_latest_window_ends_at_newest_pv(db_url: str) -> None:
     """``read_latest`` (the scheduler's read) ends each window just after the newest stored PV
-    sample, takes it from the tail it reads, and matches a whole read of the same bounds."""
+    sample, takes it from the tail it reads, and matches a whole read of the same bounds; a
+    window shorter than configured (the data stored so far) says it is filling."""
 
     async def body() -> None:
         store = await Store.open(db_url)
@@ -110,10 +111,11 @@ def test_latest_window_ends_at_newest_pv(db_url: str) -> None:
             window = 600 * S
             first = await cache.read_latest(lp, window, HOLD, T0)
             assert first.notes == ["no PV sample stored yet"] and cache.full_reads == 1
+            assert not first.filling  # nothing stored: a window of the configured length
             await store.write_samples(_samples(lp, range(0, 300)))
             short = await cache.read_latest(lp, window, HOLD, T0 + 400 * S)
             assert (short.start_us, short.end_us) == (T0, T0 + 299 * S + 1)
-            assert "window shortened to the 299 s" in short.notes[0]
+            assert "window shortened to the 299 s" in short.notes[0] and short.filling
             for end_k in (900, 1200, 1500):
                 await store.write_samples(_samples(lp, range(end_k - 600, end_k)))
                 # an OP sample newer than every PV sample stays out until PV reaches it
@@ -122,6 +124,7 @@ def test_latest_window_ends_at_newest_pv(db_url: str) -> None:
                 now = T0 + (end_k + 100) * S  # the server's clock, ahead of the plant's
                 got = await cache.read_latest(lp, window, HOLD, now)
                 assert got.end_us == T0 + (end_k - 1) * S + 1 and not got.notes
+                assert not got.filling
                 assert got.start_us == got.end_us - window
                 _same(got.window, await store.read_window(lp, got.start_us, got.end_us, hold=HOLD))
             assert cache.full_reads == 2 and cache.tail_reads == 3
@@ -129,6 +132,7 @@ def test_latest_window_ends_at_newest_pv(db_url: str) -> None:
             assert (
                 stale.end_us == T0 + 5_000 * S
                 and "no PV sample stored in the last" in (stale.notes[0])
+                and not stale.filling
             )
         finally:
             await store.close()
