@@ -17,7 +17,6 @@ recovery (commits are retried at most 5 s apart); the test only waits for both w
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import statistics
 import sys
 import tempfile
@@ -32,6 +31,7 @@ import httpx
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from cpu_load import busy_processes
 from smalldisk import fuse_reason, mount_reason, readonly_disk, small_disk
 from soak import Drill, drill
 
@@ -138,11 +138,6 @@ def drill_on(layout: str, tmp: Path) -> Iterator[tuple[Drill, Disk]]:
             yield d, disk
 
 
-def _spin() -> None:
-    while True:
-        pass
-
-
 def _summary(xs: list[float]) -> str:
     return f"min {min(xs):5.2f}  median {statistics.median(xs):5.2f}  max {max(xs):5.2f} s"
 
@@ -159,11 +154,8 @@ def main() -> None:
     )
     if reason:
         raise SystemExit(f"cannot run here: {reason}")
-    spinners = [mp.Process(target=_spin, daemon=True) for _ in range(args.cpu_load)]
-    for s in spinners:
-        s.start()
     times: dict[str, tuple[list[float], list[float]]] = {x: ([], []) for x in args.layouts}
-    try:
+    with busy_processes(args.cpu_load):
         for layout in args.layouts:
             with (
                 tempfile.TemporaryDirectory(prefix="plantcheck-disk-") as tmp,
@@ -178,9 +170,6 @@ def main() -> None:
                         f"back {c.written_back_s:5.2f} s after the recovery",
                         flush=True,
                     )
-    finally:
-        for s in spinners:
-            s.terminate()
     print(f"\n{args.repeat} cycles per fault, {args.hold:g}-s faults, {args.cpu_load} busy:")
     for layout, (reported, back) in times.items():
         print(f"{layout:18s} 503: {_summary(reported)};  written back: {_summary(back)}")

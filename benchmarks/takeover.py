@@ -16,7 +16,6 @@ new leader starting its scheduler and sources. ``--cpu-load N`` runs N busy proc
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import random
 import re
 import signal
@@ -30,15 +29,12 @@ from pathlib import Path
 
 import httpx
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from cpu_load import busy_processes
 from helpers import free_port
 from pgcluster import PgCluster, available
 from servicehelpers import CLI, fill_store, write_config
-
-
-def _spin() -> None:
-    while True:
-        pass
 
 
 def _role(port: int) -> str | None:
@@ -70,7 +66,6 @@ def main() -> None:
     folder = Path(tempfile.mkdtemp(prefix="plantcheck-takeover-"))
     cluster = PgCluster()
     cluster.start()
-    spinners = [mp.Process(target=_spin, daemon=True) for _ in range(args.cpu_load)]
     procs: dict[int, subprocess.Popen[bytes]] = {}
     try:
         url = cluster.create_database(f"t{uuid.uuid4().hex[:8]}")
@@ -96,24 +91,23 @@ def main() -> None:
         _until(ports[0], "leader", 120)
         start(1)
         _until(ports[1], "standby", 120)
-        for s in spinners:
-            s.start()
         times = []
         leader = 0
         phase = random.Random(0)
-        for i in range(args.kills):
-            # the standby settled, killed at any phase of its poll
-            time.sleep(1 + phase.uniform(0, args.poll))
-            procs[leader].send_signal(signal.SIGKILL)
-            procs[leader].wait()
-            t0 = time.monotonic()
-            other = 1 - leader
-            _until(ports[other], "leader", 120)
-            times.append(time.monotonic() - t0)
-            print(f"kill {i + 1:2d}: run-{other} leads after {times[-1]:.2f} s", flush=True)
-            start(leader)
-            _until(ports[leader], "standby", 120)
-            leader = other
+        with busy_processes(args.cpu_load):
+            for i in range(args.kills):
+                # the standby settled, killed at any phase of its poll
+                time.sleep(1 + phase.uniform(0, args.poll))
+                procs[leader].send_signal(signal.SIGKILL)
+                procs[leader].wait()
+                t0 = time.monotonic()
+                other = 1 - leader
+                _until(ports[other], "leader", 120)
+                times.append(time.monotonic() - t0)
+                print(f"kill {i + 1:2d}: run-{other} leads after {times[-1]:.2f} s", flush=True)
+                start(leader)
+                _until(ports[leader], "standby", 120)
+                leader = other
         print(
             f"\ntakeover after kill -9, {args.kills} kills, takeover_poll_s {args.poll:g} s, "
             f"{args.cpu_load} busy processes: min {min(times):.2f} s, median "
@@ -121,8 +115,6 @@ def main() -> None:
         )
         print(f"logs in {folder}")
     finally:
-        for s in spinners:
-            s.kill()
         for p in procs.values():
             if p.poll() is None:
                 p.kill()
