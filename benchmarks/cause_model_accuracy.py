@@ -200,7 +200,8 @@ def accuracy_per_family(
     ev: CorpusEvidence, pred: NDArray[np.int64], rules: NDArray[np.int64] | None = None
 ) -> None:
     """Print the share of ``ev``'s windows ``pred`` gets right per family value (and the
-    rules' share beside it when given), then under 300 samples and from 300 up."""
+    rules' share beside it when given), then per band of the window's length
+    (``LENGTH_BANDS``)."""
     right = pred == ev.y
     for key, values in FAMILIES.items():
         fam = np.array(ev.family[key])
@@ -211,9 +212,18 @@ def accuracy_per_family(
                 beside = "" if rules is None else f"/{np.mean(rules[m] == ev.y[m]):.2f}"
                 cells.append(f"{v} {np.mean(right[m]):.2f}{beside} ({int(m.sum())})")
         print(f"  {key}: " + ", ".join(cells))
-    short = ev.samples < 300
-    print(f"  windows under 300 samples: {np.mean(right[short]):.2f} ({int(short.sum())}); "
-          f"300 and more: {np.mean(right[~short]):.2f}")  # fmt: skip
+    cells = []
+    for lo, hi in zip(LENGTH_BANDS, (*LENGTH_BANDS[1:], math.inf), strict=True):
+        m = (ev.samples >= lo) & (ev.samples < hi)
+        if m.any():
+            span = f"{lo:,}+" if hi == math.inf else f"{lo:,}-{hi:,}"
+            cells.append(f"{span} {np.mean(right[m]):.2f} ({int(m.sum())})")
+    print("  window samples: " + ", ".join(cells))
+
+
+LENGTH_BANDS = (0, 300, 1_000, 3_000)
+"""Lower ends of the window-length bands (samples) the accuracy is read per: short windows
+hold fewer cycles and responses, and the decision is less sure of them."""
 
 
 STRENGTH_BANDS = (1.3, 1.5, 2.0, 3.0, 5.0, math.inf)

@@ -94,7 +94,7 @@ class LatestWindow:
     start_us: int
     end_us: int
     notes: list[str]
-    filling: bool = False
+    filling: bool
     """Shorter than the configured window: all the data stored so far (a service just
     started, a loop just added), so the next read holds more."""
 
