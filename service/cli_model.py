@@ -72,10 +72,10 @@ def fit_cmd(
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
 
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
-    the rules' macro-F1 on the same windows) to stdout. About two hours on 2 cores for the
-    default 64,000 windows (the shape network reads four times as many; each fault's twin is
-    simulated beside it) and about 4.5 GB of memory at the peak; with ``--cache``, a second
-    run only fits (about 25 minutes), and one with more windows draws only the new ones.
+    the rules' macro-F1 on the same windows) to stdout. About two and a half hours on 2 cores
+    for the default 64,000 windows (the shape network reads four times as many; each fault's
+    twin is simulated beside it) and about 4.5 GB of memory at the peak; with ``--cache``, a
+    second run only fits (about 50 minutes), and one with more windows draws only the new ones.
     """
     # imported here: the diagnosis package costs the other commands' start-up its numpy
     from plantcheck.diagnosis.cause_model import SHIPPED_MODEL
