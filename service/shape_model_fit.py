@@ -37,8 +37,9 @@ SHAPE_VERSION = 1
 CHANNELS = (3, 32, 64, 96, 128)
 """The convolutions' channels, input first. Twice the width of the first networks (16, 32,
 48, 64 with a dense layer of 64; fortieth session): on the 256,000 fit windows the network
-alone read check seed 303 0.914 against 0.896 and the blend 0.934 against 0.925, for 0.4 ms
-more a window on a 2-core machine that runs the chain in 24 ms (benchmarks/README.md)."""
+alone read check seed 303 0.914 against 0.896 and the blend 0.934 against 0.925, for about
+0.7 ms more of the chain per 3,600 samples on a 2-core machine whose chain takes 18-28 ms
+(benchmarks/README.md)."""
 KERNELS = (9, 7, 5, 5)
 """Their kernel lengths (stride 2 each: 512 points become 32)."""
 HIDDEN = 128
