@@ -203,6 +203,7 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     network."""
     from plantcheck.diagnosis.cause_model import load_cause_model
     from plantcheck.diagnosis.evidence import FEATURE_NAMES
+    from plantcheck.service.shape_model_fit import EPOCHS
 
     out = tmp_path / "m.npz"
     r = run_cli("model", "fit", "--windows", "60", "--out", str(out), "--jobs", "2", "--json",
@@ -218,7 +219,7 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     assert model.shape is not None and model.meta["shape"]["library"] == "torch"
     assert model.meta["shape"]["seed"] == 2
     assert model.shape_weight == figures["shape_weight"] and 0.0 <= model.shape_weight <= 1.0
-    assert "shape network: epoch 15/15" in r.stderr
+    assert f"shape network: epoch {EPOCHS}/{EPOCHS}" in r.stderr
 
 
 def test_model_fit_refuses_an_unwritable_output_before_it_draws(
