@@ -67,6 +67,11 @@ class IdentificationParams:
     the loop and the direct method reads the controller's inverse (Ljung 1999, §13.4)."""
     min_auto_share: float = 0.5
     """Share of the window in automatic below which the loop is called 'in manual'."""
+    min_input_share: float = 1e-6
+    """OP's part of the fitted PV (the gain times its lagged OP) must vary by at least this
+    share of the PV's own variation: a drift term can fit a ramping PV exactly and leave the
+    gain at rounding level (3e-12 on a PV ramp beside a wandering OP), which SIMC would turn
+    into a controller gain of 1e14."""
     step_before: int = 20
     """Samples kept before each set-point step when the stretches around steps are fitted."""
     min_samples: int = 60
@@ -412,6 +417,13 @@ def identify_process(
         return no_model(
             f"the best model explains the PV poorly (fit {fit_pct:.0f} %, "
             f"{p.min_fit_percent:g} % needed): loads or noise move the PV more than OP does"
+        )
+    moved = abs(fit.K) * float(np.std(fit.x[rows]))
+    if moved < p.min_input_share * float(np.std(pv[rows])):
+        return no_model(
+            "the PV does not answer OP in this window (OP's part of the best model is at "
+            "rounding level; a drift explains the PV): a set-point step or a bump test would "
+            "show the process"
         )
     lag1 = _residual_lag1(pv[rows], fit.x[rows], fit.K)
     # an exact fit (PV and OP both interpolated straight across a historian's gap) leaves

@@ -320,3 +320,16 @@ def test_an_exact_fit_is_a_model_not_an_error() -> None:
     for op in (40.0 + 0.01 * t, walk):
         model = identify_process(40.0 + 0.01 * t, op, 1.0)
         assert model.kind is None or (model.K_sd is not None and model.K_sd >= 0.0)
+
+
+def test_a_gain_at_rounding_level_is_no_model_and_no_setting() -> None:
+    """A PV ramping beside a wandering OP: a drift fits the PV exactly and the gain is a
+    rounding residue (3e-12), which SIMC once turned into a proposed controller gain of
+    -3.3e14 and a predicted response that overflowed to 1e289. No model, so no setting."""
+    t = np.arange(3600, dtype=np.float64)
+    walk = 50.0 + np.cumsum(np.random.default_rng(3600).normal(size=t.size)) * 0.05
+    model = identify_process(40.0 + 0.01 * t, walk, 1.0)
+    assert model.kind is None and "does not answer OP" in model.reason
+    out = tuning_for("sluggish_tuning", 40.0 + 0.01 * t, walk, 1.0, "flow", np.array([], int),
+                     None, None)  # fmt: skip
+    assert out is not None and out.json["proposed"] is None and out.json["predicted"] is None
