@@ -41,9 +41,9 @@ from plantcheck.service.blas_threads import one_blas_thread
 one_blas_thread()  # before numpy loads, as `model fit` does: the evidence drawn depends on it
 
 import numpy as np
+from model_option import chosen_model
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.cause_model import load_cause_model, shipped_cause_model
 from plantcheck.service.cause_model_fit import (
     CALIBRATION_SEED,
     CHECK_SEED,
@@ -148,9 +148,7 @@ def main() -> None:
     if unknown:  # before the check figures: a typo costs no wait
         sys.exit(f"--only {unknown[0]}: not one of LEFT_OUT ({', '.join(names)})")
     families = tuple(names[o] for o in a.only or []) or LEFT_OUT
-    if a.model is not None and not a.model.is_file():
-        sys.exit(f"--model {a.model}: no such file")
-    model = load_cause_model(a.model) if a.model is not None else shipped_cause_model()
+    model = chosen_model(a.model)
     if model is None:
         sys.exit("no shipped model: run plantcheck model fit first")
     small = side_windows(a.windows)

@@ -29,8 +29,9 @@ import statistics
 import time
 from pathlib import Path
 
+from model_option import chosen_model
+
 from plantcheck.diagnosis import ChainParams, diagnose
-from plantcheck.diagnosis.cause_model import load_cause_model, shipped_cause_model
 from plantcheck.simulator.cases import generate_short_window_cases
 from plantcheck.simulator.loop import simulate_loop
 
@@ -43,10 +44,7 @@ def main() -> None:
     ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
     ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
     args = ap.parse_args()
-    if args.model is not None and not args.model.is_file():
-        ap.error(f"--model {args.model}: no such file; write one with plantcheck model fit --out")
-    model = shipped_cause_model() if args.model is None else load_cause_model(args.model)
-    params = ChainParams(cause_model=model, decide_by=args.decision)
+    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
     t0 = time.perf_counter()
     found: collections.Counter[tuple[str, str, bool]] = collections.Counter()
     errors: dict[str, list[float]] = collections.defaultdict(list)

@@ -33,9 +33,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from isdb import ACCEPTED, SHARED, load_isdb
+from model_option import chosen_model
 
 from plantcheck.diagnosis import Baseline, ChainParams, baseline_from, diagnose
-from plantcheck.diagnosis.cause_model import load_cause_model
 
 TEP = SHARED / "data" / "tep-braatz"
 TEP_FILES = {"d00": "normal", "d04": "IDV(4) step", "d11": "IDV(11) random",
@@ -59,14 +59,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", type=Path, help="model file (default: the shipped one)")
     args = ap.parse_args()
-    if args.model is None:
-        rules, learned = ChainParams(decide_by="rules"), ChainParams(decide_by="learned")
-    else:
-        if not args.model.is_file():
-            sys.exit(f"--model {args.model}: no such file (plantcheck model fit --out writes one)")
-        model = load_cause_model(args.model)
-        rules = ChainParams(decide_by="rules", cause_model=model)
-        learned = ChainParams(decide_by="learned", cause_model=model)
+    model = chosen_model(args.model)
+    rules = ChainParams(decide_by="rules", cause_model=model)
+    learned = ChainParams(decide_by="learned", cause_model=model)
     loops = load_isdb()
     if not loops:
         print("ISDB: ../shared/data absent, skipped")
