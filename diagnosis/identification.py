@@ -43,8 +43,10 @@ from plantcheck.diagnosis.signal_tools import (
     detrend,
     first_order_lags,
     log_grid,
+    mean,
     noise_sigma,
     sorted_unique,
+    std,
 )
 
 ModelKind = Literal["fopdt", "ipdt"]
@@ -418,19 +420,20 @@ def identify_process(
             f"the best model explains the PV poorly (fit {fit_pct:.0f} %, "
             f"{p.min_fit_percent:g} % needed): loads or noise move the PV more than OP does"
         )
-    moved = abs(fit.K) * float(np.std(fit.x[rows]))
-    if moved < p.min_input_share * float(np.std(pv[rows])):
+    x_rows, pv_rows = fit.x[rows], pv[rows]
+    xr = x_rows - mean(x_rows)
+    sxx = float(xr @ xr)
+    # OP's part of the fitted PV, |K| times its lagged OP's σ, against the PV's σ
+    if abs(fit.K) * math.sqrt(sxx / rows.size) < p.min_input_share * std(pv_rows):
         return no_model(
             "the PV does not answer OP in this window (OP's part of the best model is at "
             "rounding level; a drift explains the PV): a set-point step or a bump test would "
             "show the process"
         )
-    lag1 = _residual_lag1(pv[rows], fit.x[rows], fit.K)
+    lag1 = _residual_lag1(pv_rows, x_rows, fit.K)
     # an exact fit (PV and OP both interpolated straight across a historian's gap) leaves
     # an SSE of rounding, which may be a hair below 0
     allowance = max(fit.sse, 0.0) / max(rows.size - 5, 1) * (1.0 + lag1) / (1.0 - lag1)
-    xr = fit.x[rows] - fit.x[rows].mean()
-    sxx = float(xr @ xr)
     K_sd = math.sqrt(allowance / sxx) if sxx > 0 else None
     spread = _gain_spread(pv, fit.x, segments)
     if K_sd is not None and spread is not None:
