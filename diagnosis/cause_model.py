@@ -55,7 +55,9 @@ class _Walk:
     """Where each node reads its input in ``_Walk.inputs``: its input, in the copy that sends
     a missing value where the node does (LightGBM decides that once per node)."""
     children: IndexArray
-    """(2, slots): the slot a node goes to when it goes right (row 0) or left (row 1)."""
+    """(2 × slots,): the slot a node goes to when it goes right (at 2·slot) or left (at
+    2·slot + 1), interleaved so that one ``take`` of ``2·slot + went_left`` reads it: half the
+    time of a two-dimensional fancy index (3,600 trees, 5 steps: 90 µs against 180)."""
     value: FloatArray
     step_cell: IndexArray
     """The contribution cell (class × input) of the step into each slot: its parent's tree
@@ -125,7 +127,7 @@ def _walk_layout(model: CauseModel) -> _Walk:
     return _Walk(
         threshold=model.threshold[slot],
         reads=missing_left * n_feat + feature,
-        children=children,
+        children=np.ascontiguousarray(children.T).ravel(),
         value=value,
         step_cell=step_cell,
         step_gain=step_gain,
@@ -285,15 +287,19 @@ def decide(model: CauseModel, x: FloatArray, shape: ShapeInput | None = None) ->
     idx = w.roots
     path = []
     for _ in range(model.depth - 1):
-        go_left = inputs[w.reads[idx]] <= w.threshold[idx]
-        idx = w.children[go_left.view(np.uint8), idx]
+        go_left = inputs.take(w.reads.take(idx)) <= w.threshold.take(idx)
+        idx = w.children.take(2 * idx + go_left)
         path.append(idx)
     went = np.concatenate(path) if path else idx[:0]
     contrib = np.asarray(
-        np.bincount(w.step_cell[went], weights=w.step_gain[went], minlength=n_cls * n_feat),
+        np.bincount(
+            w.step_cell.take(went), weights=w.step_gain.take(went), minlength=n_cls * n_feat
+        ),
         dtype=np.float64,
     ).reshape(n_cls, n_feat)
-    raw = np.bincount(model.tree_class, weights=w.value[idx], minlength=n_cls).astype(np.float64)
+    raw = np.bincount(model.tree_class, weights=w.value.take(idx), minlength=n_cls).astype(
+        np.float64
+    )
     p = calibrated(raw, model.temperature)
     if model.shape is None or shape is None:
         return Decision(p, raw, w.base.copy(), contrib)
