@@ -40,7 +40,7 @@ from plantcheck.simulator.plant_windows import steady_op
 
 T = TypeVar("T")
 
-CORPUS_VERSION = 7
+CORPUS_VERSION = 8
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
 
 CLASSES: tuple[str, ...] = (
@@ -67,8 +67,11 @@ FAMILIES: dict[str, tuple[str, ...]] = {
 }
 
 DETUNABLE = frozenset({"stiction", "external_disturbance", "saturation"})
-"""Classes whose controller is drawn detuned (gain × 0.1-0.6, integral time × 1-5) in half
-the windows: the fault is the valve, the load or the limit, whatever the tuning."""
+"""Classes whose controller is drawn detuned (gain × 0.03-0.6, integral time × 1-30 of SIMC's,
+log-uniform) in half the windows: the fault is the valve, the load or the limit, whatever the
+tuning. Plants run loops far slower than the process needs: the refinery-like flows of issue
+24's family run an integral time 12-300 times τ; corpus version 7 stopped at 5 times SIMC's,
+and no sticky valve it showed had a controller that slow (version 8, 2026-11-30)."""
 
 MIN_SAMPLES, MAX_SAMPLES = 150, 12_000
 """Window lengths, drawn log-uniformly: short slow records to a day at a few seconds."""
@@ -398,8 +401,9 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
             _nuisance_load(rng, "coloured", dur, tu, _log_uniform(rng, 1.0, 6.0) * noise / gain),
         )
     elif cause == "sluggish_tuning":
-        pi = replace(pi, Kc=pi.Kc * _log_uniform(rng, 0.08, 0.35),
-                     Ti_s=pi.Ti_s * _log_uniform(rng, 2.0, 6.0))  # fmt: skip
+        # as slow as plants run them (version 8; version 7 stopped at Kc × 0.08, Ti × 6)
+        pi = replace(pi, Kc=pi.Kc * _log_uniform(rng, 0.03, 0.35),
+                     Ti_s=pi.Ti_s * _log_uniform(rng, 2.0, 30.0))  # fmt: skip
         if sp_kind == "constant":
             # a sluggish loop shows only in how it answers a load or a set-point move
             loads = (_nuisance_load(rng, "steps", dur, tu, 2.0 * load_size),)
@@ -417,8 +421,8 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         # plants run many loops detuned: a sticky valve then slips a few times an hour instead
         # of cycling, a disturbance passes through a slow loop, whatever the fault
         tuning = "detuned"
-        pi = replace(pi, Kc=pi.Kc * _log_uniform(rng, 0.1, 0.6),
-                     Ti_s=pi.Ti_s * _log_uniform(rng, 1.0, 5.0))  # fmt: skip
+        pi = replace(pi, Kc=pi.Kc * _log_uniform(rng, 0.03, 0.6),
+                     Ti_s=pi.Ti_s * _log_uniform(rng, 1.0, 30.0))  # fmt: skip
     limit_kind = str(rng.choice(FAMILIES["limit"], p=[0.4, 0.2, 0.4]))
     u0 = float(rng.uniform(15.0, 85.0))
     steady = steady_op(proc, 50.0, 0.0, u0)
