@@ -13,6 +13,11 @@ check windows, beside the full model on the same windows.
 FILE``, say with ``--tree-seed`` or ``--shape-seed``: how far one fit's figures are a draw).
 The trees' and the shape network's figures alone are printed beside the blend's.
 
+``--against FILE``: also read the model in FILE (``shipped`` for the shipped one) on the same
+windows and print the macro-F1 difference with its paired bootstrap standard error (500
+resamples) and how many windows the two read differently: whether a refit differs from the
+file it would replace by more than chance.
+
 ``--check-seed``: read another seed's windows than the fit's check seed (303, which many
 choices have read): 404 was drawn in the thirty-second session and read by no choice before.
 
@@ -58,6 +63,7 @@ from plantcheck.service.cause_model_fit import (
     fit_trees,
     macro_f1,
     model_probabilities,
+    paired_macro_f1_difference,
     raw_scores,
     reliability,
     shape_log_probabilities_of,
@@ -137,6 +143,9 @@ def main() -> None:
                     help="accuracy per band of how strongly each fault shows (5 min)")  # fmt: skip
     ap.add_argument("--model", type=Path, default=None,
                     help="model file to read (default: the shipped one)")  # fmt: skip
+    ap.add_argument("--against", default=None, metavar="FILE",
+                    help="compare with this model file ('shipped': the shipped one) on the same "
+                    "windows: the macro-F1 difference and its paired standard error")  # fmt: skip
     a = ap.parse_args()
     if a.check_seed in (FIT_SEED, CALIBRATION_SEED):
         sys.exit(f"--check-seed {a.check_seed}: the model was fitted or calibrated on it")
@@ -151,10 +160,15 @@ def main() -> None:
     model = chosen_model(a.model)
     if model is None:
         sys.exit("no shipped model: run plantcheck model fit first")
+    other = None
+    if a.against is not None:
+        other = chosen_model(None if a.against == "shipped" else Path(a.against), "--against")
+        if other is None:
+            sys.exit("--against shipped: no shipped model (run plantcheck model fit first)")
     small = side_windows(a.windows)
     chk = corpus_evidence(a.check_seed, small, progress=say, cache=CACHE)
     chk_shapes = None
-    if model.shape is not None:
+    if model.shape is not None or (other is not None and other.shape is not None):
         chk_shapes = corpus_shapes(a.check_seed, small, progress=say, cache=CACHE)
     p = model_probabilities(model, chk, chk_shapes)
     pred = p.argmax(axis=1)
@@ -171,6 +185,13 @@ def main() -> None:
         net = shape_log_probabilities_of(model, chk_shapes).argmax(axis=1)
         alone.append(f"shape network alone {macro_f1(chk.y, net, len(CLASSES))[0]:.3f}")
     print("; ".join(alone))
+    if other is not None:
+        pred_other = model_probabilities(other, chk, chk_shapes).argmax(axis=1)
+        diff, se = paired_macro_f1_difference(chk.y, pred, pred_other, len(CLASSES))
+        print(f"against {a.against}: macro-F1 {macro_f1(chk.y, pred_other, len(CLASSES))[0]:.4f}; "
+              f"this file less it {diff:+.4f}, paired bootstrap standard error {se:.4f} "
+              f"(500 resamples of the same windows); {int(np.sum(pred != pred_other))} of "
+              f"{chk.y.size} windows read differently")  # fmt: skip
     print("class".ljust(22) + "learned F1   rules F1")
     for cls, f, r in zip(CLASSES, f1s, rf1s, strict=True):
         print(f"{cls:22s}{f:10.3f}{r:11.3f}")
