@@ -585,17 +585,17 @@ def _best_fits(
 
 
 def _moves_after(
-    ev: StickSlipEvent,
+    candidates: Sequence[StickSlipEvent],
     pv: FloatArray,
     sig: _Signals,
     dyn: _Dynamics,
     sp_steps: IntArray,
     integrating: bool,
     p: StickSlipParams,
-) -> bool:
-    """True when the PV follows OP after the slip: the valve moves with OP, so the 'slip' was
-    a load change toward the set point (Kano et al. 2004: a slip is followed by a stuck
-    phase).
+) -> list[bool]:
+    """For each of ``candidates``: True when the PV follows OP after the slip: the valve moves
+    with OP, so the 'slip' was a load change toward the set point (Kano et al. 2004: a slip is
+    followed by a stuck phase).
 
     A sticky valve stands still again once it has slipped, until OP has travelled as far as
     it did before the slip: on that stretch (up to the next set-point step) the PV shows only
@@ -604,34 +604,60 @@ def _moves_after(
     ``_slip_evidence``), and the valve standing still after at most one more step around the
     slip's end. The first must leave ``after_ratio`` × less residual and remove
     ``after_chi2`` noise variances more; and OP must travel beyond its noise there, or there
-    is nothing to follow."""
+    is nothing to follow.
+
+    The stretches are fitted side by side in one ``_best_fits`` (each span's sums apart, so
+    every verdict is the one a fit of its span alone gives): a window with set-point steps
+    asks this of five slips or more, whose fits one at a time cost their array calls'
+    overhead rather than their arithmetic."""
+    out = [False] * len(candidates)
+    which: list[int] = []
+    spans: list[tuple[int, int, int]] = []  # (first sample, samples, breakaway)
+    for k, ev in enumerate(candidates):
+        stretch = _after_stretch(ev, sig, sp_steps, int(pv.size), p)
+        if stretch is not None:
+            which.append(k)
+            spans.append((*stretch, ev.breakaway))
+    if not spans:
+        return out
+    lo, n, brk = (np.array(col, dtype=np.int64) for col in zip(*spans, strict=True))
+    first = np.concatenate(([0], np.cumsum(n)[:-1]))
+    seg = np.repeat(np.arange(n.size), n)
+    at = lo[seg] + np.arange(int(n.sum())) - first[seg]
+    y = pv[at]
+    # the slip's response goes on (from the breakaway or around its end), or the valve slips
+    # once more, either way: samples since each origin, from 0 (origins <= lo) on
+    origins = np.stack([brk, lo - 6, lo - 4, lo - 2, lo])
+    since = at[None, :] - origins[:, seg]
+    regressors = dyn.regressors(at, since, first, n, integrating)
+    fits = _best_fits(y, regressors, dyn.after_signs[:, None], dyn.n_linear, first, n)
+    for k, (sse_follow, sse_stuck) in zip(which, fits.tolist(), strict=True):
+        out[k] = (
+            sse_stuck >= p.after_ratio * sse_follow
+            and (sse_stuck - sse_follow) / sig.noise_var >= p.after_chi2
+        )
+    return out
+
+
+def _after_stretch(
+    ev: StickSlipEvent, sig: _Signals, sp_steps: IntArray, size: int, p: StickSlipParams
+) -> tuple[int, int] | None:
+    """(first sample, samples) of the stretch after ``ev``'s slip that ``_moves_after``
+    reads, up to the next set-point step; None when it is too short or OP does not travel
+    beyond its noise there (nothing to follow)."""
     lo = ev.end
     later = sp_steps[sp_steps > lo]
     hi = min(
         lo + min(max(ev.breakaway - ev.start, p.min_after_samples), p.max_after_samples),
-        pv.size - 1,
+        size - 1,
     )
     if later.size:
         hi = min(hi, int(later[0]) - 1)
     if hi - lo < p.min_after_samples:
-        return False
+        return None
     if np.ptp(sig.ops[lo : hi + 1]) < p.op_travel_sigma * sig.sigma_op:
-        return False
-    y = pv[lo : hi + 1]
-    n = y.size
-    # the slip's response goes on (from the breakaway or around its end), or the valve slips
-    # once more, either way
-    origins = np.asarray([ev.breakaway, lo - 6, lo - 4, lo - 2, lo])
-    # samples since each origin: from 0 (origins <= lo) to below the window's length
-    since = np.arange(n)[None, :] + lo - origins[:, None]
-    first, length = np.array([0]), np.array([n])
-    regressors = dyn.regressors(lo + np.arange(n), since, first, length, integrating)
-    fits = _best_fits(y, regressors, dyn.after_signs[:, None], dyn.n_linear, first, length)
-    sse_follow, sse_stuck = (float(v) for v in fits[0])
-    return (
-        sse_stuck >= p.after_ratio * sse_follow
-        and (sse_stuck - sse_follow) / sig.noise_var >= p.after_chi2
-    )
+        return None
+    return lo, hi - lo + 1
 
 
 def _stuck_phases(
@@ -886,22 +912,28 @@ def detect_stick_slip(
         i: any([_confirms(next(fits), sp.end - sp.start + 1, r, p) for sp, r in each])
         for i, each in tests.items()
     }
-    for i, (_, ((ev, ratio, rate, follow, kick), _)) in enumerate(ranked):
+    fast = [
+        ratio >= p.stick_slip_ratio
+        and rate >= p.slip_rate_ratio
+        and follow <= p.follow_fraction
+        and kick <= p.kick_fraction
+        and abs(ev.pv_jump) >= p.fast_slip_sigma * sig.sigma_y
+        for _, ((ev, ratio, rate, follow, kick), _) in ranked
+    ]
+    # whether the PV follows OP after each slip that may count, all read at once: a few more
+    # than the loop below reads (it stops at ``max_events``, and once enough are strong)
+    asked = [i for i in range(len(ranked)) if not too_large[i] and (fast[i] or confirmed.get(i))]
+    moves = dict(zip(asked, _moves_after([ranked[i][1][0][0] for i in asked], pv, sig, dyn,
+                                         sp_steps, integrating, p), strict=True))  # fmt: skip
+    for i, (_, ((ev, _, _, _, kick), _)) in enumerate(ranked):
         if too_large[i]:
             continue
-        fast = (
-            ratio >= p.stick_slip_ratio
-            and rate >= p.slip_rate_ratio
-            and follow <= p.follow_fraction
-            and kick <= p.kick_fraction
-            and abs(ev.pv_jump) >= p.fast_slip_sigma * sig.sigma_y
-        )
         strong = sum(e.strong for e in events) < strong_needed and confirmed.get(i, False)
         if strong and kick > p.step_kick_fraction and _near_step(ev, sp_steps, p.jump_horizon):
             strong = False
-        if (strong or fast) and _moves_after(ev, pv, sig, dyn, sp_steps, integrating, p):
-            strong = fast = False
-        if strong or fast:
+        if (strong or fast[i]) and moves[i]:
+            continue  # the PV follows OP: a load change, not a slip
+        if strong or fast[i]:
             events.append(replace(ev, strong=strong))
         if len(events) >= p.max_events:
             break
