@@ -522,9 +522,7 @@ def _slip_batch(spans: list[_SlipSpan], dyn: _Dynamics, integrating: bool) -> Fl
     per span."""
     s, a, b = (np.array([sp[i] for sp in spans], dtype=np.int64) for i in (1, 2, 3))
     n = b - s + 1
-    first = np.concatenate(([0], np.cumsum(n)[:-1]))
-    seg = np.repeat(np.arange(len(spans)), n)
-    k = np.arange(int(n.sum())) - first[seg]  # each sample's place in its span
+    first, seg, k = _end_to_end(n)
     y = np.concatenate([sp.pv[sp.start : sp.end + 1] for sp in spans])
     # a valve step a few samples around the turn (8 before to 2 after, every second), through
     # each lag: samples since each step, -1 before it, never past the rise's end
@@ -533,6 +531,14 @@ def _slip_batch(spans: list[_SlipSpan], dyn: _Dynamics, integrating: bool) -> Fl
     regs = dyn.regressors(s[seg] + k, since, first, n, integrating)
     signs = np.stack([dyn.slip_signs[sp.toward] for sp in spans], axis=1)
     return _best_fits(y, regs, signs, dyn.n_linear, first, n)
+
+
+def _end_to_end(n: IntArray) -> tuple[IntArray, IntArray, IntArray]:
+    """Spans of ``n`` samples laid end to end, as ``_best_fits`` reads them: where each span
+    begins, the span of each sample, and each sample's place in its span."""
+    first = np.concatenate(([0], np.cumsum(n)[:-1]))
+    seg = np.repeat(np.arange(n.size), n)
+    return first, seg, np.arange(int(n.sum())) - first[seg]
 
 
 def _best_fits(
@@ -621,9 +627,8 @@ def _moves_after(
     if not spans:
         return out
     lo, n, brk = (np.array(col, dtype=np.int64) for col in zip(*spans, strict=True))
-    first = np.concatenate(([0], np.cumsum(n)[:-1]))
-    seg = np.repeat(np.arange(n.size), n)
-    at = lo[seg] + np.arange(int(n.sum())) - first[seg]
+    first, seg, place = _end_to_end(n)
+    at = lo[seg] + place
     y = pv[at]
     # the slip's response goes on (from the breakaway or around its end), or the valve slips
     # once more, either way: samples since each origin, from 0 (origins <= lo) on
