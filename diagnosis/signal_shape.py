@@ -13,7 +13,7 @@ PyTorch by ``plantcheck model fit`` (``service.shape_model_fit``) and evaluated 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
@@ -23,6 +23,7 @@ from plantcheck.diagnosis.signal_tools import mean, noise_sigma, std
 from plantcheck.diagnosis.stiction_vote import is_integrating
 
 FloatArray = NDArray[np.float64]
+Float32Array = NDArray[np.float32]
 
 SHAPE_SAMPLES = 512
 """Points each channel is resampled to: block means of a longer window, a linear
@@ -124,6 +125,23 @@ class ShapeNet:
     scalar_sd: FloatArray
     scalar_min: FloatArray
     scalar_max: FloatArray
+    conv_mats: tuple[tuple[Float32Array, Float32Array, int], ...] = field(init=False, repr=False)
+    """Each convolution as the forward pass multiplies it: its weights as one (out × in·k)
+    matrix and its bias as a column, in float32 (PyTorch fitted them in float32; the inputs
+    are float16 numbers, exact in float32), and its kernel width. A float32 product takes
+    half a float64 one's time: the decision 0.94-1.07 -> 0.70-0.83 ms a window (forty-sixth
+    session, benchmarks/README.md); the log probabilities move by about 1e-6."""
+
+    def __post_init__(self) -> None:
+        mats = tuple(
+            (
+                np.ascontiguousarray(w.reshape(w.shape[0], -1), dtype=np.float32),
+                np.asarray(b, dtype=np.float32)[:, None],
+                int(w.shape[2]),
+            )
+            for w, b in zip(self.conv_w, self.conv_b, strict=True)
+        )
+        object.__setattr__(self, "conv_mats", mats)
 
     def to_arrays(self, prefix: str) -> dict[str, FloatArray]:
         """The arrays a model file keeps, named ``prefix`` + role + index."""
@@ -158,19 +176,18 @@ class ShapeNet:
 
 def shape_log_probabilities(net: ShapeNet, x: ShapeInput) -> FloatArray:
     """The network's log class probabilities for one window."""
-    h = x.channels
-    for w, b in zip(net.conv_w, net.conv_b, strict=True):
-        out_ch, in_ch, k = w.shape
-        h = np.maximum(w.reshape(out_ch, in_ch * k) @ _columns(h, k) + b[:, None], 0.0)
+    h: Float32Array = x.channels.astype(np.float32)
+    for w, b, k in net.conv_mats:
+        h = np.maximum(w @ _columns(h, k) + b, np.float32(0.0))
     z = np.concatenate(
         [
-            h.mean(axis=1),
-            h.max(axis=1),
+            h.mean(axis=1, dtype=np.float64),
+            h.max(axis=1).astype(np.float64),
             (np.clip(x.scalars, net.scalar_min, net.scalar_max) - net.scalar_mean) / net.scalar_sd,
         ]
     )
-    for i, (w, b) in enumerate(zip(net.dense_w, net.dense_b, strict=True)):
-        z = w @ z + b
+    for i, (dense_w, dense_b) in enumerate(zip(net.dense_w, net.dense_b, strict=True)):
+        z = dense_w @ z + dense_b
         if i < len(net.dense_w) - 1:
             z = np.maximum(z, 0.0)
     z = z - z.max()
@@ -178,7 +195,7 @@ def shape_log_probabilities(net: ShapeNet, x: ShapeInput) -> FloatArray:
     return out
 
 
-def _columns(h: FloatArray, k: int) -> FloatArray:
+def _columns(h: Float32Array, k: int) -> Float32Array:
     """(in × k, points): each output point's ``k`` inputs side by side, for a stride-2
     convolution of the channels ``h`` (in, length) with zero padding of k // 2 (as PyTorch's
     ``Conv1d(stride=2, padding=k // 2)``): one matrix product per layer. A strided view of the
@@ -186,10 +203,10 @@ def _columns(h: FloatArray, k: int) -> FloatArray:
     in_ch, length = h.shape
     pad = k // 2
     points = (length + 2 * pad - k) // 2 + 1
-    padded = np.zeros((in_ch, length + 2 * pad))
+    padded = np.zeros((in_ch, length + 2 * pad), dtype=np.float32)
     padded[:, pad : pad + length] = h
     along, across = padded.strides
     # tap j of point i reads padded[:, 2i + j]: never past the padded end (2(points − 1) + k
     # <= length + 2·pad by the definition of points)
     taps = as_strided(padded, (in_ch, k, points), (along, across, 2 * across), writeable=False)
-    return np.asarray(taps.reshape(in_ch * k, points), dtype=np.float64)
+    return np.asarray(taps.reshape(in_ch * k, points), dtype=np.float32)
