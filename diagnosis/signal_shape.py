@@ -7,7 +7,8 @@ both (``cause_model.decide``).
 The network is four strided 1-D convolutions with ReLU (batch normalisation folded into their
 weights at export), the mean and the maximum of the last one over time, and two dense layers
 (the usual 1-D CNN for time-series classification: Wang, Yan & Oates 2017). It is fitted with
-PyTorch by ``plantcheck model fit`` (``service.shape_model_fit``) and evaluated here in numpy.
+PyTorch by ``plantcheck model fit`` (``service.shape_model_fit``) and evaluated here in numpy,
+the convolutions in float32 as PyTorch fitted them and the dense layers in float64.
 """
 
 from __future__ import annotations
