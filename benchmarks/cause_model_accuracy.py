@@ -55,6 +55,7 @@ from plantcheck.service.cause_model_fit import (
     FIT_SEED,
     FIT_WINDOWS,
     SHAPE_WINDOW_FACTOR,
+    TREE_WINDOW_FACTOR,
     CorpusEvidence,
     corpus_evidence,
     expected_calibration_error,
@@ -212,7 +213,7 @@ def main() -> None:
         else:
             strength(a.check_seed, np.flatnonzero(chk_shapes.judged), chk, pred)
     if a.left_out:
-        left_out(a.windows, chk, chk_shapes, pred, families)
+        left_out(a.windows, chk, chk_shapes, pred, families, 1 + len(model.shape_more))
 
 
 def accuracy_per_family(
@@ -299,11 +300,13 @@ def left_out(
     chk_shapes: CorpusShapes | None,
     pred: np.ndarray,
     families: tuple[tuple[str, str], ...] = LEFT_OUT,
+    networks: int = 1,
 ) -> None:
-    """Fit without each of ``families``, test on its check windows: the trees, and the shape
-    network (on the judged windows of the other families among its ``SHAPE_WINDOW_FACTOR``
-    times as many fit windows) blended in as the shipped model is, when it has one."""
-    fit = corpus_evidence(FIT_SEED, windows, progress=say, cache=CACHE)
+    """Fit without each of ``families``, test on its check windows, as ``plantcheck model
+    fit`` does: the trees on ``TREE_WINDOW_FACTOR`` times ``windows``, and ``networks`` shape
+    networks (on the judged windows of the other families among their ``SHAPE_WINDOW_FACTOR``
+    times as many) averaged and blended in as the shipped model's are, when it has them."""
+    fit = corpus_evidence(FIT_SEED, TREE_WINDOW_FACTOR * windows, progress=say, cache=CACHE)
     small = side_windows(windows)
     cal = corpus_evidence(CALIBRATION_SEED, small, progress=say, cache=CACHE)
     shapes = None
@@ -327,9 +330,10 @@ def left_out(
             fit_shapes, cal_shapes, net_family = shapes
             net_keep = np.array(net_family[key]) != value
             net_windows = _judged_rows(fit_shapes, net_keep)
-            net = fit_shape_net(net_windows, progress=say)
-            m = with_blend(replace(m, shape=net), _rows(cal, cal_keep),
-                           _judged_rows(cal_shapes, cal_keep), net_windows.y.size)  # fmt: skip
+            nets = [fit_shape_net(net_windows, seed=k, progress=say) for k in range(networks)]
+            m = with_blend(replace(m, shape=nets[0], shape_more=tuple(nets[1:])),
+                           _rows(cal, cal_keep), _judged_rows(cal_shapes, cal_keep),
+                           net_windows.y.size)  # fmt: skip
             fam_shapes = _judged_rows(chk_shapes, fam)
         y = chk.y[fam]
         p_out = model_probabilities(m, chk_fam, fam_shapes).argmax(axis=1)

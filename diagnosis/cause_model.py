@@ -9,14 +9,16 @@ seeds the trees never saw. Each input's contribution to a class is read along th
 path (Saabas 2014: the change in a node's value that the split on that input made), so the
 contributions and the trees' base values add up to the raw score exactly.
 
-A model may also hold a small network that reads the window's shape (``signal_shape``): the
-trees' calibrated log-probabilities and the network's are then blended, (1 − w)·log p_trees
+A model may also hold a small network that reads the window's shape (``signal_shape``), or
+several fitted from other seeds whose log-probabilities are averaged: the trees' calibrated
+log-probabilities and the network's are then blended, (1 − w)·log p_trees
 + w·log p_shape, and calibrated once more by a second temperature, both fitted on the
 calibration seed (a weighted product of experts, Hinton 2002; Guo et al. 2017).
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -165,6 +167,10 @@ class CauseModel:
     meta: dict[str, object]
     shape: ShapeNet | None = None
     """The shape network blended with the trees (None: the trees decide alone)."""
+    shape_more: tuple[ShapeNet, ...] = ()
+    """Further networks fitted like ``shape`` from other seeds, on the same windows: their
+    log-probabilities are averaged with its own (a deep ensemble, Lakshminarayanan et al.
+    2017), so one draw's accidents weigh less."""
     shape_weight: float = 0.0
     """w: the network's weight in the blend of log-probabilities."""
     blend_temperature: float = 1.0
@@ -182,6 +188,8 @@ class CauseModel:
                 "blend_temperature": self.blend_temperature,
                 "shape_base": list(self.shape_base)}  # fmt: skip
         shape = {} if self.shape is None else self.shape.to_arrays(SHAPE_PREFIX)
+        for k, net in enumerate(self.shape_more, start=2):
+            shape |= net.to_arrays(f"shape{k}_")
         return {
             **shape,
             "head": np.frombuffer(json.dumps(head).encode(), dtype=np.uint8),
@@ -249,7 +257,8 @@ def _read_model(path: Path) -> CauseModel:
             meta=dict(head.get("meta") or {}),
             # the open file, not dict(z): that decompressed every array again (the trees' 5 MB,
             # 20-45 ms of a one-record `plantcheck diagnose`)
-            shape=ShapeNet.from_arrays(z, SHAPE_PREFIX) if _has_shape(z) else None,
+            shape=ShapeNet.from_arrays(z, SHAPE_PREFIX) if _has_shape(z, SHAPE_PREFIX) else None,
+            shape_more=_more_shapes(z),
             shape_weight=float(head.get("shape_weight", 0.0)),
             blend_temperature=float(head.get("blend_temperature", 1.0)),
             shape_base=tuple(float(v) for v in head.get("shape_base", ())),
@@ -257,11 +266,21 @@ def _read_model(path: Path) -> CauseModel:
 
 
 SHAPE_PREFIX = "shape_"
-"""The shape network's arrays in a model file are named with this prefix."""
+"""The shape network's arrays in a model file are named with this prefix (the further
+networks': ``shape2_``, ``shape3_``...)."""
 
 
-def _has_shape(z: np.lib.npyio.NpzFile) -> bool:
-    return f"{SHAPE_PREFIX}scalar_mean" in z.files
+def _has_shape(z: np.lib.npyio.NpzFile, prefix: str) -> bool:
+    return f"{prefix}scalar_mean" in z.files
+
+
+def _more_shapes(z: np.lib.npyio.NpzFile) -> tuple[ShapeNet, ...]:
+    """The further networks ``shape2_``, ``shape3_``... of a model file, up to the first
+    missing."""
+    prefixes = itertools.takewhile(
+        lambda p: _has_shape(z, p), (f"shape{k}_" for k in itertools.count(2))
+    )
+    return tuple(ShapeNet.from_arrays(z, p) for p in prefixes)
 
 
 SHIPPED_MODEL = Path(__file__).with_name("models") / MODEL_FILE
@@ -303,9 +322,20 @@ def decide(model: CauseModel, x: FloatArray, shape: ShapeInput | None = None) ->
     p = calibrated(raw, model.temperature)
     if model.shape is None or shape is None:
         return Decision(p, raw, w.base.copy(), contrib)
-    log_shape = shape_log_probabilities(model.shape, shape)
+    log_shape = shape_reading(model.shape, model.shape_more, shape)
     p = blended(safe_log(p), log_shape, model.shape_weight, model.blend_temperature)
     return Decision(p, raw, w.base.copy(), contrib, np.exp(log_shape))
+
+
+def shape_reading(first: ShapeNet, more: tuple[ShapeNet, ...], x: ShapeInput) -> FloatArray:
+    """The networks' log-probabilities of the window ``x``: the first network's own, or,
+    with ``more``, the log of their normalised geometric mean (the mean of their
+    log-probabilities, normalised again)."""
+    log_first = shape_log_probabilities(first, x)
+    if not more:
+        return log_first
+    mean = np.mean([log_first, *(shape_log_probabilities(net, x) for net in more)], axis=0)
+    return safe_log(calibrated(mean, 1.0))
 
 
 def safe_log(p: FloatArray) -> FloatArray:

@@ -3,10 +3,10 @@
 Steps: draw the corpus windows (``simulator.corpus``) of three seeds apart (fit, calibration,
 check), run the chain's tests on each (``diagnosis.chain.chain_evidence``), fit LightGBM's
 multiclass gradient-boosted trees (Ke et al. 2017) on the first, fit one softmax temperature
-(Guo et al. 2017) on the second, fit the shape network on the first and its blend with the trees
-on the second (``service.shape_model_fit``), report the third, and export it all into the numpy
-file the diagnosis reads (``diagnosis.cause_model``). Real plant records play no part: they are
-test sets only.
+(Guo et al. 2017) on the second, fit the shape networks on the first and their blend with the
+trees on the second (``service.shape_model_fit``), report the third, and export it all into
+the numpy file the diagnosis reads (``diagnosis.cause_model``). Real plant records play no
+part: they are test sets only.
 
 LightGBM and PyTorch are imported by the fit only (the ``fit`` extra), so the CLI's other
 commands never pay their import time.
@@ -26,10 +26,17 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from plantcheck.diagnosis.cause_model import CauseModel, blended, calibrated, decide, safe_log
+from plantcheck.diagnosis.cause_model import (
+    CauseModel,
+    blended,
+    calibrated,
+    decide,
+    safe_log,
+    shape_reading,
+)
 from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.diagnosis.evidence import EVIDENCE_VERSION, FEATURE_NAMES, evidence_vector
-from plantcheck.diagnosis.signal_shape import ShapeInput, shape_log_probabilities
+from plantcheck.diagnosis.signal_shape import ShapeInput
 from plantcheck.service.corpus_cache import cached_start
 from plantcheck.service.corpus_draw import read_windows
 from plantcheck.service.shape_model_fit import (
@@ -96,6 +103,16 @@ SHAPE_WINDOW_FACTOR = 4
 seed, the trees' own among them): on 32,000, 64,000, 128,000 and 256,000 windows it read the
 check seed at 0.825, 0.853, 0.880 and 0.896 alone, still learning where the trees no longer do
 (benchmarks/README.md)."""
+
+
+TREE_WINDOW_FACTOR = 4
+"""The trees too read this many times the fit windows (the network's windows, whose
+evidence the fit then computes as well): on the 256,000 windows they gained 0.002-0.008 on
+each of seven seeds against 64,000 (forty-sixth session, benchmarks/README.md)."""
+
+SHAPE_NETWORKS = 2
+"""Shape networks fitted on the same windows from seeds ``shape_seed``, ``shape_seed`` + 1...
+and averaged (``CauseModel.shape_more``)."""
 
 
 def side_windows(windows: int) -> int:
@@ -390,16 +407,18 @@ def fit_model(
     tree_seed: int = 0,
     shape: bool = True,
     shape_seed: int = 0,
+    networks: int = SHAPE_NETWORKS,
 ) -> FitReport:
     """Fit on ``windows`` windows of the fit seed, calibrate and check on
     ``side_windows(windows)`` of the other two; the exported model and its check figures.
     ``tree_seed``: LightGBM's seed for its row and column subsampling; ``shape``: fit the
-    shape network and blend it in (``service.shape_model_fit``), its weights drawn and its
-    batches shuffled from ``shape_seed``."""
+    shape networks and blend them in (``service.shape_model_fit``), ``networks`` of them,
+    the k-th's weights drawn and its batches shuffled from ``shape_seed`` + k. The trees
+    read ``TREE_WINDOW_FACTOR`` × ``windows`` windows of the fit seed."""
     say = progress or (lambda _m: None)
     fit_s, cal_s, chk_s = seeds
     small = side_windows(windows)
-    fit = corpus_evidence(fit_s, windows, jobs, say, cache)
+    fit = corpus_evidence(fit_s, TREE_WINDOW_FACTOR * windows, jobs, say, cache)
     cal = corpus_evidence(cal_s, small, jobs, say, cache)
     chk = corpus_evidence(chk_s, small, jobs, say, cache)
     say(f"fitting {ROUNDS} rounds on {fit.y.size} windows")
@@ -428,10 +447,12 @@ def fit_model(
     if shape:
         fit_shapes = corpus_shapes(fit_s, SHAPE_WINDOW_FACTOR * windows, jobs, say, cache)
         cal_shapes = corpus_shapes(cal_s, small, jobs, say, cache)
-        net = fit_shape_net(fit_shapes, seed=shape_seed, progress=say)
+        nets = [fit_shape_net(fit_shapes, seed=shape_seed + k, progress=say)
+                for k in range(networks)]  # fmt: skip
         model = with_blend(
-            replace(model, shape=net), cal, cal_shapes, fit_shapes.y.size, seed=shape_seed
-        )
+            replace(model, shape=nets[0], shape_more=tuple(nets[1:])),
+            cal, cal_shapes, fit_shapes.y.size, seed=shape_seed,
+        )  # fmt: skip
         say(f"blend: shape network weight {model.shape_weight}, "
             f"temperature {model.blend_temperature:.3f}")  # fmt: skip
     chk_shapes = corpus_shapes(chk_s, small, jobs, say, cache) if shape else None
@@ -474,7 +495,8 @@ def with_blend(
     log_shape = shape_log_probabilities_of(model, cal_shapes)
     weight, temperature = fit_blend(log_trees, log_shape, cal.y)
     shape_meta = {"version": SHAPE_VERSION, "library": "torch", "epochs": EPOCHS,
-                  "threads": SHAPE_THREADS, "windows": int(fit_windows), "seed": seed}  # fmt: skip
+                  "threads": SHAPE_THREADS, "windows": int(fit_windows), "seed": seed,
+                  "networks": 1 + len(model.shape_more)}  # fmt: skip
     return replace(model, shape_weight=weight, blend_temperature=temperature,
                    shape_base=tuple(log_shape.mean(axis=0).tolist()),
                    meta={**model.meta, "shape": shape_meta})  # fmt: skip
@@ -510,8 +532,9 @@ def shape_log_probabilities_of(model: CauseModel, shapes: CorpusShapes) -> NDArr
     rows = np.flatnonzero(shapes.judged)
     return np.array(
         [
-            shape_log_probabilities(
+            shape_reading(
                 net,
+                model.shape_more,
                 ShapeInput(
                     shapes.channels[i].astype(np.float64), shapes.scalars[i].astype(np.float64)
                 ),

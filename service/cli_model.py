@@ -67,6 +67,14 @@ def fit_cmd(
             "the trees alone."
         ),
     ] = True,
+    networks: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            help="Shape networks fitted from seeds shape-seed, shape-seed + 1... and averaged "
+            "(the shipped fits use 2).",
+        ),
+    ] = 2,  # service.cause_model_fit.SHAPE_NETWORKS (a test holds them equal)
     as_json: Annotated[bool, typer.Option("--json", help="Print the figures as JSON.")] = False,
 ) -> None:
     """Draw the corpus (simulator.corpus), fit the trees, calibrate, check, write OUT.
@@ -75,7 +83,8 @@ def fit_cmd(
     the rules' macro-F1 on the same windows) to stdout. About two and a half hours on 2 cores
     for the default 64,000 windows (the shape network reads four times as many; each fault's
     twin is simulated beside it) and about 4.5 GB of memory at the peak; with ``--cache``, a
-    second run only fits (about 50 minutes), and one with more windows draws only the new ones.
+    second run only fits (about 55 minutes: two networks), and one with more windows draws
+    only the new ones.
     """
     # imported here: the diagnosis package costs the other commands' start-up its numpy
     from plantcheck.diagnosis.cause_model import SHIPPED_MODEL
@@ -106,6 +115,7 @@ def fit_cmd(
         tree_seed=tree_seed,
         shape=shape,
         shape_seed=shape_seed,
+        networks=networks,
     )
     save_model(rep.model, out)
     figures = {

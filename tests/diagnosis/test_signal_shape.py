@@ -64,7 +64,7 @@ def test_the_blend_is_a_softmax_of_weighted_log_probabilities() -> None:
     x = ShapeInput(rng.normal(size=(3, SHAPE_SAMPLES)), rng.normal(size=len(SCALARS)))
     log_shape = shape_log_probabilities(net, x)
     assert abs(float(np.exp(log_shape).sum()) - 1.0) < 1e-12
-    both = replace(model, shape=net, shape_weight=0.3, blend_temperature=0.9)
+    both = replace(model, shape=net, shape_more=(), shape_weight=0.3, blend_temperature=0.9)
     ev = rng.normal(size=len(FEATURE_NAMES))
     trees = decide(model, ev)
     d = decide(both, ev, x)
@@ -76,6 +76,27 @@ def test_the_blend_is_a_softmax_of_weighted_log_probabilities() -> None:
     np.testing.assert_array_equal(decide(both, ev).probabilities, trees.probabilities)
 
 
+def test_networks_averaged_read_as_their_normalised_geometric_mean() -> None:
+    """Several networks' log-probabilities are averaged and normalised again before the
+    blend, so the shape's probabilities still add up to 1."""
+    model = shipped_cause_model()
+    assert model is not None
+    nets = [_random_net(k) for k in (7, 8, 9)]
+    rng = np.random.default_rng(4)
+    x = ShapeInput(rng.normal(size=(3, SHAPE_SAMPLES)), rng.normal(size=len(SCALARS)))
+    logs = np.array([shape_log_probabilities(net, x) for net in nets])
+    mean = logs.mean(axis=0)
+    want_shape = mean - np.log(np.exp(mean).sum())
+    three = replace(model, shape=nets[0], shape_more=tuple(nets[1:]), shape_weight=0.4,
+                    blend_temperature=1.2)  # fmt: skip
+    ev = rng.normal(size=len(FEATURE_NAMES))
+    d = decide(three, ev, x)
+    assert d.shape_probabilities is not None
+    np.testing.assert_allclose(np.log(d.shape_probabilities), want_shape, rtol=1e-12)
+    want = blended(np.log(decide(model, ev).probabilities), want_shape, 0.4, 1.2)
+    np.testing.assert_allclose(d.probabilities, want, rtol=1e-12)
+
+
 def test_a_model_file_keeps_its_shape_network(tmp_path: Path) -> None:
     from plantcheck.service.cause_model_fit import save_model
 
@@ -84,14 +105,21 @@ def test_a_model_file_keeps_its_shape_network(tmp_path: Path) -> None:
     net = _random_net(4)
     path = tmp_path / "m.npz"
     base = tuple(np.log(np.full(len(CLASSES), 1.0 / len(CLASSES))).tolist())
-    save_model(replace(model, shape=net, shape_weight=0.25, blend_temperature=1.1,
-                       shape_base=base), path)  # fmt: skip
+    save_model(replace(model, shape=net, shape_more=(), shape_weight=0.25,
+                       blend_temperature=1.1, shape_base=base), path)  # fmt: skip
     back = load_cause_model(path)
     assert back.shape is not None and back.shape_weight == 0.25 and back.blend_temperature == 1.1
     assert back.shape_base == base
     for a, b in zip(back.shape.conv_w + back.shape.dense_w, net.conv_w + net.dense_w, strict=True):
         np.testing.assert_array_equal(a, b)
-    assert back.classes == CLASSES
+    assert back.classes == CLASSES and back.shape_more == ()
+    # further networks are kept, in their order
+    more = (_random_net(5), _random_net(6))
+    save_model(replace(back, shape_more=more), path)
+    again = load_cause_model(path)
+    assert len(again.shape_more) == 2
+    for got, net_k in zip(again.shape_more, more, strict=True):
+        np.testing.assert_array_equal(got.dense_w[1], net_k.dense_w[1])
 
 
 def test_a_model_file_without_an_array_it_needs_names_it(tmp_path: Path) -> None:

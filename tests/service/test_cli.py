@@ -218,6 +218,8 @@ def test_model_fit_rebuilds_a_model_the_diagnosis_reads(run_cli: RunCli, tmp_pat
     # the shape network, blended in by the weight the calibration windows gave
     assert model.shape is not None and model.meta["shape"]["library"] == "torch"
     assert model.meta["shape"]["seed"] == 2
+    # two networks, seeds 2 and 3, averaged
+    assert len(model.shape_more) == 1 and model.meta["shape"]["networks"] == 2
     assert model.shape_weight == figures["shape_weight"] and 0.0 <= model.shape_weight <= 1.0
     assert f"shape network: epoch {EPOCHS}/{EPOCHS}" in r.stderr
 
@@ -251,15 +253,17 @@ def test_simulate_names_an_output_path_it_cannot_write(run_cli: RunCli, tmp_path
         assert "Traceback" not in r.stderr and "internal error" not in r.stderr
 
 
-def test_model_fit_defaults_to_the_fit_modules_window_count() -> None:
+def test_model_fit_defaults_to_the_fit_modules_counts() -> None:
     """The CLI keeps its own copy of the default (importing the fit module would cost every
     command's start-up numpy and scipy): the two must agree."""
     import inspect
 
-    from plantcheck.service.cause_model_fit import FIT_WINDOWS
+    from plantcheck.service.cause_model_fit import FIT_WINDOWS, SHAPE_NETWORKS
     from plantcheck.service.cli_model import fit_cmd
 
-    assert inspect.signature(fit_cmd).parameters["windows"].default == FIT_WINDOWS
+    defaults = inspect.signature(fit_cmd).parameters
+    assert defaults["windows"].default == FIT_WINDOWS
+    assert defaults["networks"].default == SHAPE_NETWORKS
 
 
 def test_diagnose_decision_learned(run_cli: RunCli) -> None:
