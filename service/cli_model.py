@@ -81,8 +81,9 @@ def fit_cmd(
 
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
     the rules' macro-F1 on the same windows) to stdout. About two and a half hours on 2 cores
-    for the default 64,000 windows (the shape network reads four times as many; each fault's
-    twin is simulated beside it) and about 4.5 GB of memory at the peak; with ``--cache``, a
+    for the default 64,000 windows before the trees read the network's four times as many
+    (their evidence adds about 35 minutes; each fault's twin is simulated beside it) and
+    about 4.5 GB of memory at the peak; with ``--cache``, a
     second run only fits (about 55 minutes: two networks), and one with more windows draws
     only the new ones.
     """
