@@ -70,8 +70,9 @@ from plantcheck.service.cause_model_fit import (
     shape_log_probabilities_of,
     side_windows,
     with_blend,
+    with_networks,
 )
-from plantcheck.service.shape_model_fit import CorpusShapes, corpus_shapes, fit_shape_net
+from plantcheck.service.shape_model_fit import CorpusShapes, corpus_shapes
 from plantcheck.simulator.corpus import CLASSES, FAMILIES, draw_case, fault_and_twin
 
 CACHE = Path(__file__).resolve().parents[1] / "build" / "corpus"
@@ -313,9 +314,15 @@ def left_out(
     if chk_shapes is not None:
         # the network reads more windows than the trees: their families come with their evidence
         wide = SHAPE_WINDOW_FACTOR * windows
+        # (the trees' own windows when they read as many: one load of that file, not two)
+        wide_family = (
+            fit.family
+            if wide == TREE_WINDOW_FACTOR * windows
+            else corpus_evidence(FIT_SEED, wide, progress=say, cache=CACHE).family
+        )
         shapes = (corpus_shapes(FIT_SEED, wide, progress=say, cache=CACHE),
                   corpus_shapes(CALIBRATION_SEED, small, progress=say, cache=CACHE),
-                  corpus_evidence(FIT_SEED, wide, progress=say, cache=CACHE).family)  # fmt: skip
+                  wide_family)  # fmt: skip
     print("left-out family          windows  full model  fitted without  drop   (accuracy)")
     for key, value in families:
         keep = np.array(fit.family[key]) != value
@@ -330,8 +337,7 @@ def left_out(
             fit_shapes, cal_shapes, net_family = shapes
             net_keep = np.array(net_family[key]) != value
             net_windows = _judged_rows(fit_shapes, net_keep)
-            nets = [fit_shape_net(net_windows, seed=k, progress=say) for k in range(networks)]
-            m = with_blend(replace(m, shape=nets[0], shape_more=tuple(nets[1:])),
+            m = with_blend(with_networks(m, net_windows, networks, progress=say),
                            _rows(cal, cal_keep), _judged_rows(cal_shapes, cal_keep),
                            net_windows.y.size)  # fmt: skip
             fam_shapes = _judged_rows(chk_shapes, fam)

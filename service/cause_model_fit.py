@@ -447,10 +447,8 @@ def fit_model(
     if shape:
         fit_shapes = corpus_shapes(fit_s, SHAPE_WINDOW_FACTOR * windows, jobs, say, cache)
         cal_shapes = corpus_shapes(cal_s, small, jobs, say, cache)
-        nets = [fit_shape_net(fit_shapes, seed=shape_seed + k, progress=say)
-                for k in range(networks)]  # fmt: skip
         model = with_blend(
-            replace(model, shape=nets[0], shape_more=tuple(nets[1:])),
+            with_networks(model, fit_shapes, networks, shape_seed, say),
             cal, cal_shapes, fit_shapes.y.size, seed=shape_seed,
         )  # fmt: skip
         say(f"blend: shape network weight {model.shape_weight}, "
@@ -478,6 +476,23 @@ def save_model(model: CauseModel, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("wb") as fh:
         np.savez_compressed(fh, **model.to_arrays())  # type: ignore[arg-type]
+
+
+def with_networks(
+    model: CauseModel,
+    shapes: CorpusShapes,
+    networks: int,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> CauseModel:
+    """``model`` with ``networks`` shape networks fitted on ``shapes``, the k-th from seed
+    ``seed`` + k (a deep ensemble, Lakshminarayanan et al. 2017): the first is
+    ``model.shape``, the others ``model.shape_more``. Their blend is not set here
+    (``with_blend``)."""
+    if networks < 1:
+        raise ValueError(f"networks: {networks}; at least 1 network is needed")
+    nets = [fit_shape_net(shapes, seed=seed + k, progress=progress) for k in range(networks)]
+    return replace(model, shape=nets[0], shape_more=tuple(nets[1:]))
 
 
 def with_blend(

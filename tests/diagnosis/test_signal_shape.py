@@ -183,7 +183,19 @@ def test_the_network_fit_is_repeatable() -> None:
     a, b = fit_shape_net(shapes), fit_shape_net(shapes)
     for x, y in zip(a.conv_w + a.dense_w + a.conv_b, b.conv_w + b.dense_w + b.conv_b, strict=True):
         np.testing.assert_array_equal(x, y)
-    assert not np.array_equal(a.dense_w[1], fit_shape_net(shapes, seed=1).dense_w[1])
+    c = fit_shape_net(shapes, seed=1)
+    assert not np.array_equal(a.dense_w[1], c.dense_w[1])
+    # the command's ensemble: the k-th network is the one drawn from seed + k
+    from plantcheck.service.cause_model_fit import with_networks
+
+    model = shipped_cause_model()
+    assert model is not None
+    two = with_networks(model, shapes, 2, seed=0)
+    assert two.shape is not None and len(two.shape_more) == 1
+    for net, want in ((two.shape, a), (two.shape_more[0], c)):
+        np.testing.assert_array_equal(net.dense_w[1], want.dense_w[1])
+    with pytest.raises(ValueError, match="networks"):
+        with_networks(model, shapes, 0)
 
 
 def test_a_scalar_outside_the_fits_range_reads_as_its_nearest_end() -> None:
