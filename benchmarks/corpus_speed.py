@@ -3,7 +3,8 @@ on ``--jobs`` processes, and what the batch simulator's cost model reads
 (``simulator.batch_loop``: a batch's sample, each loop's sample, a sticky model's, and
 ``simulate_loop``'s sample, all with their inputs and records).
 
-Nothing is cached: every window is simulated again. ``--seed`` chooses the windows (fit seed
+Nothing is cached: every window is simulated again. ``both``: the evidence and the shapes
+of each window simulated once, as ``model fit`` reads them. ``--seed`` chooses the windows (fit seed
 101 by default, from window 0); the figures of two versions of the code are comparable only
 on the same windows, alternated, as this machine's speed drifts.
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from collections.abc import Callable
 
 from plantcheck.service.blas_threads import one_blas_thread
 
@@ -22,7 +24,10 @@ one_blas_thread()  # before numpy loads, as `model fit` does: the evidence depen
 
 import numpy as np  # noqa: E402
 
-from plantcheck.service.cause_model_fit import corpus_evidence  # noqa: E402
+from plantcheck.service.cause_model_fit import (  # noqa: E402
+    corpus_evidence,
+    corpus_evidence_and_shapes,
+)
 from plantcheck.service.shape_model_fit import corpus_shapes  # noqa: E402
 from plantcheck.simulator.batch_loop import _batch  # noqa: E402
 from plantcheck.simulator.corpus import CLASSES, _draw  # noqa: E402
@@ -30,17 +35,16 @@ from plantcheck.simulator.loop import LoopConfig, simulate_loop  # noqa: E402
 
 
 def _rates(seed: int, windows: int, jobs: int, evidence: bool) -> None:
-    t0 = time.perf_counter()
-    corpus_shapes(seed, windows, jobs=jobs)
-    dt = time.perf_counter() - t0
-    print(f"shapes:   {windows} windows of seed {seed} in {dt:.1f} s: {windows / dt:.1f} a second")
+    draws: list[tuple[str, Callable[..., object]]] = [("shapes", corpus_shapes)]
     if evidence:
+        # the two one after the other, then both of each window simulated once (`model fit`)
+        draws += [("evidence", corpus_evidence), ("both", corpus_evidence_and_shapes)]
+    for name, draw in draws:
         t0 = time.perf_counter()
-        corpus_evidence(seed, windows, jobs=jobs)
+        draw(seed, windows, jobs=jobs)
         dt = time.perf_counter() - t0
-        print(
-            f"evidence: {windows} windows of seed {seed} in {dt:.1f} s: {windows / dt:.1f} a second"
-        )
+        print(f"{name + ':':9s} {windows} windows of seed {seed} in {dt:.1f} s: "
+              f"{windows / dt:.1f} a second", flush=True)  # fmt: skip
 
 
 def _first_draws(seed: int, count: int) -> tuple[list[LoopConfig], list[LoopConfig]]:

@@ -81,11 +81,12 @@ def fit_cmd(
 
     Progress goes to stderr; the check figures (macro-F1, per-class F1, calibration error,
     the rules' macro-F1 on the same windows) to stdout. About two and a half hours on 2 cores
-    for the default 64,000 windows before the trees read the network's four times as many
-    (their evidence adds about 35 minutes; each fault's twin is simulated beside it) and
-    about 4.5 GB of memory at the peak; with ``--cache``, a
-    second run only fits (about 55 minutes: two networks), and one with more windows draws
-    only the new ones.
+    for the default 64,000 windows: the evidence and the shapes of the 272,000 windows the
+    fit reads (the trees and networks read four times as many, each fault's twin simulated
+    beside it) drawn in one pass, each window simulated once (about 95 minutes at 48 a
+    second), then the fit (about 55 minutes with two networks); about 5 GB of memory at the
+    peak. With ``--cache`` a second run only fits, and one with more windows draws only the
+    new ones.
     """
     # imported here: the diagnosis package costs the other commands' start-up its numpy
     from plantcheck.diagnosis.cause_model import SHIPPED_MODEL

@@ -22,8 +22,7 @@ from scipy.optimize import minimize_scalar
 from plantcheck.diagnosis.cause_model import blended, safe_log
 from plantcheck.diagnosis.chain import chain_shape_input
 from plantcheck.diagnosis.signal_shape import SCALARS, SHAPE_SAMPLES, ShapeNet
-from plantcheck.service.corpus_cache import cached_start
-from plantcheck.service.corpus_draw import read_windows
+from plantcheck.service.corpus_cache import CorpusKind, corpus_file
 from plantcheck.simulator.corpus import (
     CLASSES,
     CORPUS_VERSION,
@@ -88,20 +87,7 @@ def corpus_shapes(
     ``cache`` (a folder) when given: about 68 windows/s on 2 cores (2026-11-30). A window
     depends on its seed and index only, so the largest cached file of fewer windows of the
     same seed is read as their start and only the rest are drawn."""
-    path = cache / f"{_shapes_stem(seed)}{n}.npz" if cache else None
-    if path is not None and path.is_file():
-        return _load_shapes(path)
-    start = cached_start(cache, _shapes_stem(seed), n) if cache else None
-    head = _load_shapes(start[0]) if start is not None else None
-    first = 0 if head is None else head.y.size
-    tail = _draw_shapes(seed, first, n, jobs, progress)
-    out = tail if head is None else _joined(head, tail)
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(
-            path, channels=out.channels, scalars=out.scalars, y=out.y, judged=out.judged
-        )
-    return out
+    return corpus_file(SHAPES_FILE, seed, n, jobs, progress, cache, "shape windows")
 
 
 def _joined(head: CorpusShapes, tail: CorpusShapes) -> CorpusShapes:
@@ -124,22 +110,41 @@ def _load_shapes(path: Path) -> CorpusShapes:
         return CorpusShapes(z["channels"], z["scalars"], z["y"], z["judged"])
 
 
-def _draw_shapes(
-    seed: int, first: int, n: int, jobs: int | None, progress: Callable[[str], None] | None
-) -> CorpusShapes:
-    """The shape inputs of windows ``first``..n-1 of corpus ``seed``."""
-    count = n - first
-    chans = np.zeros((count, 3, SHAPE_SAMPLES), dtype=np.float16)
-    scalars = np.zeros((count, len(SCALARS)), dtype=np.float32)
-    y = np.zeros(count, dtype=np.int64)
-    judged = np.zeros(count, dtype=bool)
-    if count == 0:
-        return CorpusShapes(chans, scalars, y, judged)
-    shapes = read_windows(_shape, seed, first, n, jobs, progress, "shape windows")
-    for i, (cls, c, s, ok) in enumerate(shapes):
-        # the channels went through float16 in shape_input: stored exactly
-        chans[i], scalars[i], y[i], judged[i] = c, s, cls, ok
-    return CorpusShapes(chans, scalars, y, judged)
+def _save_shapes(path: Path, shapes: CorpusShapes) -> None:
+    np.savez_compressed(path, channels=shapes.channels, scalars=shapes.scalars, y=shapes.y,
+                        judged=shapes.judged)  # fmt: skip
+
+
+_ShapeRow = tuple[int, NDArray[np.float64], NDArray[np.float64], bool]
+"""One window's class, channels, scalars and whether the chain judges it."""
+
+
+class _ShapeRows:
+    """The shape inputs of ``count`` windows as they are read, in arrays made beforehand (the
+    channels in float16, as ``shape_input`` rounded them: stored exactly)."""
+
+    def __init__(self, count: int) -> None:
+        self.shapes = CorpusShapes(
+            np.zeros((count, 3, SHAPE_SAMPLES), dtype=np.float16),
+            np.zeros((count, len(SCALARS)), dtype=np.float32),
+            np.zeros(count, dtype=np.int64),
+            np.zeros(count, dtype=bool),
+        )
+        self.count = 0
+
+    def add(self, row: _ShapeRow) -> None:
+        i, out = self.count, self.shapes
+        out.y[i], out.channels[i], out.scalars[i], out.judged[i] = row
+        self.count += 1
+
+    def result(self) -> CorpusShapes:
+        return self.shapes
+
+
+SHAPES_FILE: CorpusKind[_ShapeRow, CorpusShapes] = CorpusKind(
+    _shapes_stem, _shape, _ShapeRows, _joined, _load_shapes, _save_shapes
+)
+"""The shape inputs of a corpus' windows, as the fit caches them."""
 
 
 def fit_shape_net(

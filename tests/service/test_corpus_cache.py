@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plantcheck.service.cause_model_fit import corpus_evidence
+from plantcheck.service.cause_model_fit import corpus_evidence, corpus_evidence_and_shapes
 from plantcheck.service.corpus_draw import read_windows
 from plantcheck.service.shape_model_fit import corpus_shapes
 from plantcheck.simulator.corpus import CorpusCase, draw_case
@@ -53,6 +53,26 @@ def test_more_evidence_draws_only_the_windows_beyond_the_cached_ones(tmp_path: P
     np.testing.assert_array_equal(grown.y, whole.y)
     np.testing.assert_array_equal(grown.samples, whole.samples)
     assert (grown.rules, grown.family, grown.skipped) == (whole.rules, whole.family, whole.skipped)
+
+
+def test_evidence_and_shapes_drawn_together_equal_each_drawn_alone(tmp_path: Path) -> None:
+    """``model fit`` reads both of each window simulated once: the same numbers as the two
+    drawn one after the other, whatever start of each the cache holds."""
+    ev_alone, shapes_alone = corpus_evidence(303, 10, jobs=1), corpus_shapes(303, 10, jobs=1)
+    corpus_shapes(303, 4, jobs=1, cache=tmp_path)  # the shapes' start cached, no evidence
+    ev, shapes = corpus_evidence_and_shapes(303, 10, jobs=1, cache=tmp_path)
+    for got, want in ((ev.x, ev_alone.x), (ev.y, ev_alone.y), (ev.samples, ev_alone.samples),
+                      (shapes.channels, shapes_alone.channels),
+                      (shapes.scalars, shapes_alone.scalars), (shapes.y, shapes_alone.y),
+                      (shapes.judged, shapes_alone.judged)):  # fmt: skip
+        np.testing.assert_array_equal(got, want)
+    assert (ev.rules, ev.family, ev.skipped) == (ev_alone.rules, ev_alone.family, ev_alone.skipped)
+    assert len(list(tmp_path.glob("corpus-*-10.npz"))) == 1
+    assert len(list(tmp_path.glob("shapes-*-10.npz"))) == 1
+    # both whole in the cache now: read back as saved
+    again_ev, again_shapes = corpus_evidence_and_shapes(303, 10, jobs=1, cache=tmp_path)
+    np.testing.assert_array_equal(again_ev.x, ev.x)
+    np.testing.assert_array_equal(again_shapes.channels, shapes.channels)
 
 
 def _label(seed: int, index: int, case: CorpusCase, rec: LoopRecord) -> tuple[int, str, int]:
