@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from machine_speed import machine_line
 
 CLI = [sys.executable, "-m", "plantcheck.service.cli"]
 
@@ -50,6 +51,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         rec = Path(tmp) / "loop.csv"
         _record(rec)
+        print(machine_line())
         print("command                        median wall   peak RSS so far")
         for label, argv in (
             ("plantcheck --version", ["--version"]),

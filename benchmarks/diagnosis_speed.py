@@ -30,6 +30,8 @@ from plantcheck.service.blas_threads import one_blas_thread
 
 one_blas_thread()  # before numpy loads, as the CLI and the workers do
 
+from machine_speed import machine_line  # noqa: E402
+
 import plantcheck.diagnosis.chain as chain_module  # noqa: E402
 from plantcheck.diagnosis import diagnose  # noqa: E402
 from plantcheck.service.allocator import tune_allocator  # noqa: E402
@@ -107,6 +109,7 @@ def main() -> None:
     ap.add_argument("--stages", action="store_true", help="time the chain's main steps too")
     args = ap.parse_args()
     print(f"cpu affinity: {sorted(os.sched_getaffinity(0))}")
+    print(machine_line(), flush=True)
     for n, target_ms in ((3600, 10.0), (86400, 200.0)):
         pv, op, sp = window(n)
         for quantify in (False, True):
