@@ -58,6 +58,7 @@ from plantcheck.service.cause_model_fit import (
     TREE_WINDOW_FACTOR,
     CorpusEvidence,
     corpus_evidence,
+    corpus_evidence_and_shapes,
     expected_calibration_error,
     export_trees,
     fit_temperature,
@@ -168,10 +169,12 @@ def main() -> None:
         if other is None:
             sys.exit("--against shipped: no shipped model (run plantcheck model fit first)")
     small = side_windows(a.windows)
-    chk = corpus_evidence(a.check_seed, small, progress=say, cache=CACHE)
     chk_shapes = None
     if model.shape is not None or (other is not None and other.shape is not None):
-        chk_shapes = corpus_shapes(a.check_seed, small, progress=say, cache=CACHE)
+        chk, chk_shapes = corpus_evidence_and_shapes(a.check_seed, small, progress=say,
+                                                     cache=CACHE)  # fmt: skip
+    else:
+        chk = corpus_evidence(a.check_seed, small, progress=say, cache=CACHE)
     p = model_probabilities(model, chk, chk_shapes)
     pred = p.argmax(axis=1)
     mf1, f1s = macro_f1(chk.y, pred, len(CLASSES))
@@ -307,22 +310,25 @@ def left_out(
     fit`` does: the trees on ``TREE_WINDOW_FACTOR`` times ``windows``, and ``networks`` shape
     networks (on the judged windows of the other families among their ``SHAPE_WINDOW_FACTOR``
     times as many) averaged and blended in as the shipped model's are, when it has them."""
-    fit = corpus_evidence(FIT_SEED, TREE_WINDOW_FACTOR * windows, progress=say, cache=CACHE)
     small = side_windows(windows)
-    cal = corpus_evidence(CALIBRATION_SEED, small, progress=say, cache=CACHE)
+    wide = SHAPE_WINDOW_FACTOR * windows
     shapes = None
-    if chk_shapes is not None:
-        # the network reads more windows than the trees: their families come with their evidence
-        wide = SHAPE_WINDOW_FACTOR * windows
-        # (the trees' own windows when they read as many: one load of that file, not two)
-        wide_family = (
-            fit.family
-            if wide == TREE_WINDOW_FACTOR * windows
-            else corpus_evidence(FIT_SEED, wide, progress=say, cache=CACHE).family
-        )
-        shapes = (corpus_shapes(FIT_SEED, wide, progress=say, cache=CACHE),
-                  corpus_shapes(CALIBRATION_SEED, small, progress=say, cache=CACHE),
-                  wide_family)  # fmt: skip
+    if chk_shapes is not None and wide == TREE_WINDOW_FACTOR * windows:
+        # the networks read the trees' windows: each simulated once for both
+        fit, fit_shapes = corpus_evidence_and_shapes(FIT_SEED, wide, progress=say, cache=CACHE)
+        cal, cal_shapes = corpus_evidence_and_shapes(CALIBRATION_SEED, small, progress=say,
+                                                     cache=CACHE)  # fmt: skip
+        shapes = (fit_shapes, cal_shapes, fit.family)
+    else:
+        fit = corpus_evidence(FIT_SEED, TREE_WINDOW_FACTOR * windows, progress=say, cache=CACHE)
+        cal = corpus_evidence(CALIBRATION_SEED, small, progress=say, cache=CACHE)
+        if chk_shapes is not None:
+            # the networks read another number of windows: their families come with their
+            # evidence
+            wide_family = corpus_evidence(FIT_SEED, wide, progress=say, cache=CACHE).family
+            shapes = (corpus_shapes(FIT_SEED, wide, progress=say, cache=CACHE),
+                      corpus_shapes(CALIBRATION_SEED, small, progress=say, cache=CACHE),
+                      wide_family)  # fmt: skip
     print("left-out family          windows  full model  fitted without  drop   (accuracy)")
     for key, value in families:
         keep = np.array(fit.family[key]) != value
