@@ -12,7 +12,12 @@ time in samples. Every figure is the chain's own evidence (``chain.chain_evidenc
 will read it. Windows of calibration seed 202 (the check seed is not read), from 300
 samples up (the detector's least); the family's seeds 1-4.
 
+``--delays 0,1,2,4,8,16,32,64`` runs the two-model test's linear model over other dead times
+(samples; ``stick_slip.DELAY_GRID`` is replaced for this run): a what-if for the detector, whose
+figures then differ from what the shipped decision reads.
+
     python benchmarks/stick_slip_specificity.py [--windows 3000] [--classes ok stiction ...]
+        [--delays 0,1,2,4,8]
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import argparse
 import collections
 import time
 
+import plantcheck.diagnosis.stick_slip as stick_slip
 from plantcheck.diagnosis.chain import chain_evidence
 from plantcheck.service.cause_model_fit import CALIBRATION_SEED
 from plantcheck.simulator.cases import generate_short_window_cases
@@ -56,6 +62,17 @@ def band_of(dead_time_samples: float) -> str:
     raise ValueError(f"dead time {dead_time_samples} samples: not in any band")
 
 
+def delays_of(text: str) -> tuple[int, ...]:
+    """``--delays``: whole samples from 0 up, comma-separated, 0 among them."""
+    try:
+        delays = tuple(sorted({int(v) for v in text.split(",")}))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give whole samples, e.g. 0,1,2,4,8") from None
+    if delays[0] != 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: start at 0 (no dead time), e.g. 0,1,2,4,8")
+    return delays
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -68,7 +85,14 @@ def main() -> None:
         choices=CLASSES,
         help="the corpus classes to read",
     )
+    ap.add_argument(
+        "--delays",
+        type=delays_of,
+        default=stick_slip.DELAY_GRID,
+        help="the two-model test's dead times, samples, comma-separated (default: the chain's)",
+    )
     a = ap.parse_args()
+    stick_slip.DELAY_GRID = a.delays
     t0 = time.perf_counter()
     # (class, band) -> [windows, with events, with strong events]
     counts: dict[tuple[str, str], list[int]] = collections.defaultdict(lambda: [0, 0, 0])
@@ -85,7 +109,8 @@ def main() -> None:
         row[1] += found[0]
         row[2] += found[1]
     print(f"corpus seed {CALIBRATION_SEED}, windows 0-{a.windows - 1} of {', '.join(a.classes)}, "
-          f"from {MIN_SAMPLES} samples up: share with an event, with a strong one")  # fmt: skip
+          f"from {MIN_SAMPLES} samples up, dead times tried {a.delays}: share with an event, "
+          "with a strong one")  # fmt: skip
     print("class".ljust(22) + "dead time (samples)".ljust(22) + "windows  events  strong")
     for (cls, band), (n, ev, strong) in sorted(counts.items()):
         print(f"{cls:22s}{band:22s}{n:7d}  {ev / n:6.2f}  {strong / n:6.2f}")
