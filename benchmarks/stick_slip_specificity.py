@@ -38,11 +38,12 @@ from plantcheck.simulator.cases import generate_short_window_cases
 from plantcheck.simulator.corpus import CLASSES, draw_cases
 from plantcheck.simulator.loop import LoopRecord, simulate_loop
 
-DEAD_TIME_BANDS = ((0.0, 8.0), (8.0, 32.0), (32.0, float("inf")))
-"""Dead time bands, samples: the two-model test's grid reaches the first."""
+GRID_END = float(max(stick_slip.DELAY_GRID))
+DEAD_TIME_BANDS = ((0.0, GRID_END), (GRID_END, 4.0 * GRID_END), (4.0 * GRID_END, float("inf")))
+"""Dead time bands, samples: the chain's two-model test tries the first (0-8)."""
 
-MIN_SAMPLES = 300
-"""The detector's fewest samples for a verdict (``StickSlipParams.min_samples``)."""
+MIN_SAMPLES = stick_slip.StickSlipParams().min_samples
+"""The detector's fewest samples for a verdict."""
 
 
 def events_of(rec: LoopRecord, ts: float, loop_type: str) -> tuple[bool, bool] | None:
@@ -52,6 +53,24 @@ def events_of(rec: LoopRecord, ts: float, loop_type: str) -> tuple[bool, bool] |
     if ev is None:
         return None
     return (ev.get("events") or 0.0) >= 1.0, (ev.get("strong_events") or 0.0) >= 1.0
+
+
+def count(row: list[int], found: tuple[bool, bool]) -> None:
+    """Add one window to a ``[windows, with events, with strong events]`` row."""
+    row[0] += 1
+    row[1] += found[0]
+    row[2] += found[1]
+
+
+def positive(text: str) -> int:
+    """``--windows``: a whole number from 1 up."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of windows, e.g. 3000")
+    return n
 
 
 def band_of(dead_time_samples: float) -> str:
@@ -76,7 +95,7 @@ def delays_of(text: str) -> tuple[int, ...]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
-        "--windows", type=int, default=3000, help="corpus windows of seed 202 to draw (3000)"
+        "--windows", type=positive, default=3000, help="corpus windows of seed 202 to draw (3000)"
     )
     ap.add_argument(
         "--classes",
@@ -104,10 +123,7 @@ def main() -> None:
         found = events_of(rec, cfg.sample_time_s, case.loop_type)
         if found is None:
             continue
-        row = counts[(case.cause, band_of(cfg.process.theta_s / cfg.sample_time_s))]
-        row[0] += 1
-        row[1] += found[0]
-        row[2] += found[1]
+        count(counts[(case.cause, band_of(cfg.process.theta_s / cfg.sample_time_s))], found)
     print(f"corpus seed {CALIBRATION_SEED}, windows 0-{a.windows - 1} of {', '.join(a.classes)}, "
           f"from {MIN_SAMPLES} samples up, dead times tried {a.delays}: share with an event, "
           "with a strong one")  # fmt: skip
@@ -119,12 +135,8 @@ def main() -> None:
         for case in generate_short_window_cases(seed):
             found = events_of(simulate_loop(case.config), case.config.sample_time_s,
                               case.loop_type)  # fmt: skip
-            if found is None:
-                continue
-            row = family[case.cause]
-            row[0] += 1
-            row[1] += found[0]
-            row[2] += found[1]
+            if found is not None:
+                count(family[case.cause], found)
     print("short-window family, seeds 1-4:")
     for cls, (n, ev, strong) in sorted(family.items()):
         print(f"{cls:22s}{'':22s}{n:7d}  {ev / n:6.2f}  {strong / n:6.2f}")
