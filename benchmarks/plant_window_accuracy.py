@@ -7,6 +7,11 @@ precision and F1 per class and the macro-F1, then the accuracy per family (set-p
 output limit, recording, noise), so a weak family is visible, and how many windows were refused
 for set-point steps alone.
 
+``--decision learned``: the learned decision names the cause (``plantcheck diagnose --decision
+learned``), ``--model FILE`` another model file than the shipped one. The corpus the decision is
+fitted on (``simulator/corpus.py``) is drawn by other code than these windows, so its figures
+here are a transfer figure on simulated loops.
+
 ``--processes`` draws the same windows on a process table the chain was not developed on
 (``simulator.cases.OTHER_PROCESS_SETS``), to show what the figures owe to the benchmark's own
 table. There a sticky valve whose stickband lies within the controller output's noise moves
@@ -16,6 +21,7 @@ sticky windows whose valve moves in more than a tenth of the samples, and how ma
 
     python benchmarks/plant_window_accuracy.py [--seeds 1 2] [--per-cell 2]
         [--processes benchmark|long-lags|short-dead-times] [-v]
+        [--decision rules|learned] [--model FILE]
 """
 
 from __future__ import annotations
@@ -28,10 +34,12 @@ one_blas_thread()  # before numpy loads, as the CLI does: a diagnosis' last digi
 import argparse
 import collections
 import time
+from pathlib import Path
 
 import numpy as np
+from model_option import chosen_model
 
-from plantcheck.diagnosis import diagnose
+from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.cases import OTHER_PROCESS_SETS
 from plantcheck.simulator.loop import simulate_loop
 from plantcheck.simulator.plant_windows import CLASSES, generate_plant_window_cases
@@ -57,7 +65,10 @@ def main() -> None:
         help="process table (default: the benchmark's, simulator.cases.PROCESSES)",
     )  # fmt: skip
     ap.add_argument("-v", "--verbose", action="store_true", help="list every wrong window")
+    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
+    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
     args = ap.parse_args()
+    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
     table = OTHER_PROCESS_SETS.get(args.processes)
     dithered: collections.Counter[bool] = collections.Counter()
     t0 = time.perf_counter()
@@ -70,9 +81,8 @@ def main() -> None:
         for pc in generate_plant_window_cases(seed, args.per_cell, table):
             c = pc.case
             r = simulate_loop(c.config)
-            d = diagnose(
-                r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type, quantify=False
-            )
+            d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type,
+                         quantify=False, params=params)  # fmt: skip
             if c.cause == "stiction" and np.mean(np.diff(r.mv) != 0.0) > DITHERED:
                 dithered[d.cause == "stiction"] += 1
             confusion[(c.cause, d.cause)] += 1
@@ -87,7 +97,8 @@ def main() -> None:
                 print(f"{c.name:70s} -> {d.cause:22s} {'; '.join(d.notes)[:160]}")
     total = sum(confusion.values())
     predicted = sorted({p for _, p in confusion} | set(CLASSES))
-    print(f"windows: {total} in {time.perf_counter() - t0:.1f} s")
+    model = f" ({args.model})" if args.model else ""
+    print(f"windows: {total} in {time.perf_counter() - t0:.1f} s, decision {args.decision}{model}")
     print("true \\ predicted".ljust(22) + "".join(p[:11].rjust(12) for p in predicted))
     f1s = []
     for cls in CLASSES:

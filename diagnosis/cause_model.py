@@ -34,6 +34,13 @@ IntArray = NDArray[np.int64]
 IndexArray = NDArray[np.int32]
 BoolArray = NDArray[np.bool_]
 
+CLAMP_SUPPORT = 0.9
+"""The largest share of a window with OP at an output limit that the corpus draws (a saturated
+window is drawn again beyond it: ``simulator.corpus``): a window clamped for longer, often a
+valve at its limit all hour, holds no window the model was fitted on, and the trees and the
+networks read its constant OP as nothing they learned (issue 25's plant windows: sticky, with
+p = 1.00, or ok). The chain does not ask the model there (``chain._within_corpus``)."""
+
 MODEL_FILE = "cause_model.npz"
 """The shipped model, in the package folder ``diagnosis/models``."""
 

@@ -20,6 +20,7 @@ from plantcheck.diagnosis.acf_decay import acf_decay_ratio
 from plantcheck.diagnosis.baseline import DEGRADED_RATIO, Baseline, variability
 from plantcheck.diagnosis.bicoherence import BicoherenceParams, bicoherence_test
 from plantcheck.diagnosis.cause_model import (
+    CLAMP_SUPPORT,
     CauseModel,
     Decision,
     decide,
@@ -380,9 +381,10 @@ def _run_chain(run: _Run, gather: bool = False) -> _Run:
             _judge_oscillation(run, stretch)
         else:
             _judge_quiet_loop(run, stretch)
-    if _judged(win) and (gather or p.cause_model is not None):
+    weighs = p.cause_model is not None and _within_corpus(run)
+    if _judged(win) and (gather or weighs):
         _gather(run)
-        if p.cause_model is not None:
+        if weighs and p.cause_model is not None:
             _weigh(run, p.cause_model)
     _too_short(run)
     if _judged(win):
@@ -408,6 +410,22 @@ def _gather(run: _Run) -> None:
                                    st.osc, run.loop_type, p, _error_noise(win, st))  # fmt: skip
     if run.decay is None:
         _decay_ratio(run, st)
+
+
+def _within_corpus(run: _Run) -> bool:
+    """Whether the window is of a kind the learned decision was fitted on: OP at an output
+    limit for at most ``CLAMP_SUPPORT`` of it. Beyond, the window checks' verdict stands and a
+    note says why (the model would read a window unlike any of its corpus)."""
+    share = float(run.win.indices.get("saturation_fraction") or 0.0)
+    if share <= CLAMP_SUPPORT:
+        return True
+    if _judged(run.win):
+        run.diag.notes.append(
+            f"OP at its limit for {100 * share:.0f} % of the window: the learned decision, "
+            f"fitted on windows clamped for at most {100 * CLAMP_SUPPORT:.0f} % of their "
+            "samples, is not asked"
+        )
+    return False
 
 
 def _judged(win: WindowReport) -> bool:

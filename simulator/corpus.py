@@ -22,6 +22,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from plantcheck.diagnosis.cause_model import CLAMP_SUPPORT
 from plantcheck.diagnosis.signal_tools import hann_power
 from plantcheck.simulator.batch_loop import BATCH_SAMPLES, simulate_loops
 from plantcheck.simulator.cases import (
@@ -291,7 +292,8 @@ def _clamp_share(op: np.ndarray, limit: float | None) -> float:
 
 def _plausible(case: CorpusCase, rec: LoopRecord) -> bool:
     """Whether the record can show its label before any twin is weighed: the output rests
-    at its limit for 20-90 % of a saturated window and for at most 10 % of any other; a
+    at its limit for 20 % to ``CLAMP_SUPPORT`` of a saturated window (the learned decision is
+    not asked beyond) and for at most 10 % of any other; a
     fault's error stands out of the noise (``VISIBLE``); a sticky valve sticks and slips at
     least twice. A window with a twin shows its label only if ``_beside_twin`` holds too."""
     c = case.config.controller
@@ -299,7 +301,7 @@ def _plausible(case: CorpusCase, rec: LoopRecord) -> bool:
     ends = [float(np.mean(rec.op >= 99.99)), float(np.mean(rec.op <= 0.01))]
     share = max([_clamp_share(rec.op, v) for v in limits] + ends)
     if case.cause == "saturation":
-        return 0.2 <= share <= 0.9
+        return 0.2 <= share <= CLAMP_SUPPORT
     if share > 0.1:
         return False
     if not np.all(np.isfinite(rec.pv)) or float(np.ptp(rec.op)) < 1e-6:
