@@ -4,6 +4,12 @@ Prints the confusion matrix of the generated case matrix (simulator.cases) and t
 table loop by loop (needs ../shared/data; skipped with a note when absent).
 
     python benchmarks/diagnosis_accuracy.py [--seeds 1 2] [--lengths 1000 5000 20000] [-v]
+        [--decision rules|learned] [--model FILE]
+
+``--decision learned``: the learned decision names the cause (``plantcheck diagnose --decision
+learned``), ``--model FILE`` another model file than the shipped one; the generated cases are
+then a transfer figure on simulated loops (the corpus is drawn by other code), the ISDB loops
+the one ``transfer_real.py`` prints.
 """
 
 from __future__ import annotations
@@ -22,21 +28,23 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from isdb import ACCEPTED, load_isdb
+from model_option import chosen_model
 
-from plantcheck.diagnosis import diagnose
+from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.cases import generate_cases
 from plantcheck.simulator.loop import simulate_loop
 
 
-def generated(seeds: list[int], lengths: tuple[int, ...], verbose: bool) -> float:
+def generated(
+    seeds: list[int], lengths: tuple[int, ...], verbose: bool, params: ChainParams
+) -> float:
     conf: collections.Counter[tuple[str, str]] = collections.Counter()
     t0 = time.perf_counter()
     for seed in seeds:
         for c in generate_cases(seed=seed, lengths=lengths):
             r = simulate_loop(c.config)
-            d = diagnose(
-                r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type, quantify=False
-            )
+            d = diagnose(r.pv, r.op, c.config.sample_time_s, sp=r.sp, loop_type=c.loop_type,
+                         quantify=False, params=params)  # fmt: skip
             conf[(c.cause, d.cause)] += 1
             if verbose and d.cause != c.cause:
                 o = d.oscillation
@@ -60,7 +68,7 @@ def generated(seeds: list[int], lengths: tuple[int, ...], verbose: bool) -> floa
     return acc
 
 
-def isdb() -> None:
+def isdb(params: ChainParams) -> None:
     loops = load_isdb()
     if not loops:
         print("ISDB data not found at ../shared/data/isdb-partial-npokhappy: skipped")
@@ -68,7 +76,7 @@ def isdb() -> None:
     right = labelled = 0
     print(f"{'loop':7s} {'type':11s} {'Ts':>5s} {'label':22s} {'cause':26s} ok  tests")
     for lp in loops:
-        d = diagnose(lp.pv, lp.op, lp.ts, loop_type=lp.loop_type)
+        d = diagnose(lp.pv, lp.op, lp.ts, loop_type=lp.loop_type, params=params)
         acc = ACCEPTED.get(lp.label)
         good = acc is not None and d.cause in acc
         labelled += acc is not None
@@ -86,9 +94,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--lengths", type=int, nargs="+", default=[1000, 5000, 20000])
     ap.add_argument("-v", "--verbose", action="store_true")
+    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
+    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
     args = ap.parse_args()
-    generated(args.seeds, tuple(args.lengths), args.verbose)
-    isdb()
+    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+    print(f"decision {args.decision}" + (f" ({args.model})" if args.model else ""))
+    generated(args.seeds, tuple(args.lengths), args.verbose, params)
+    isdb(params)
 
 
 if __name__ == "__main__":
