@@ -10,7 +10,10 @@ of travel on top of a slow random walk, noise σ 0.05, 0.2 or 0.5 % of span, wit
 a set-point step, two seeds: 288 windows of 720 samples, all healthy. Prints how many read
 ``stiction``, per period and noise level, and the causes given.
 
-    python benchmarks/slow_load_false_alarms.py [-v]
+    python benchmarks/slow_load_false_alarms.py [-v] [--decision rules|learned] [--model FILE]
+
+``--decision learned``: the learned decision names the cause, ``--model FILE`` another model
+file than the shipped one.
 """
 
 from __future__ import annotations
@@ -24,8 +27,11 @@ import argparse
 import collections
 import itertools
 import time
+from pathlib import Path
 
-from plantcheck.diagnosis import diagnose
+from model_option import chosen_model
+
+from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.loop import (
     Disturbance,
     LoopConfig,
@@ -64,7 +70,10 @@ def window(
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("-v", "--verbose", action="store_true", help="list every false alarm")
+    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
+    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
     args = ap.parse_args()
+    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
     t0 = time.perf_counter()
     alarms: collections.Counter[tuple[float, float]] = collections.Counter()
     windows: collections.Counter[tuple[float, float]] = collections.Counter()
@@ -72,7 +81,8 @@ def main() -> None:
     grid = itertools.product(PERIODS_S, AMPLITUDES, NOISES, GAINS, LAGS_S, SEEDS, (False, True))
     for period, amp, noise, kc, tau, seed, step in grid:
         r = simulate_loop(window(period, amp, noise, kc, tau, seed, step))
-        d = diagnose(r.pv, r.op, 10.0, sp=r.sp, loop_type="pressure", quantify=False)
+        d = diagnose(r.pv, r.op, 10.0, sp=r.sp, loop_type="pressure", quantify=False,
+                     params=params)  # fmt: skip
         causes[d.cause] += 1
         windows[(period, noise)] += 1
         if d.cause == "stiction":
@@ -84,7 +94,7 @@ def main() -> None:
                 )
     print(
         f"healthy loops under slow periodic loads: {sum(windows.values())} windows, "
-        f"{time.perf_counter() - t0:.0f} s"
+        f"{time.perf_counter() - t0:.0f} s, decision {args.decision}"
     )
     print(f"{'period s':>9s} " + " ".join(f"{'noise ' + str(n):>11s}" for n in NOISES))
     for period in PERIODS_S:
