@@ -381,11 +381,11 @@ def _run_chain(run: _Run, gather: bool = False) -> _Run:
             _judge_oscillation(run, stretch)
         else:
             _judge_quiet_loop(run, stretch)
-    weighs = p.cause_model is not None and _within_corpus(run)
-    if _judged(win) and (gather or weighs):
+    model = p.cause_model if p.cause_model is not None and _within_corpus(run) else None
+    if _judged(win) and (gather or model is not None):
         _gather(run)
-        if weighs and p.cause_model is not None:
-            _weigh(run, p.cause_model)
+        if model is not None:
+            _weigh(run, model)
     _too_short(run)
     if _judged(win):
         _against_baseline(run)

@@ -293,9 +293,9 @@ def _clamp_share(op: np.ndarray, limit: float | None) -> float:
 def _plausible(case: CorpusCase, rec: LoopRecord) -> bool:
     """Whether the record can show its label before any twin is weighed: the output rests
     at its limit for 20 % to ``CLAMP_SUPPORT`` of a saturated window (the learned decision is
-    not asked beyond) and for at most 10 % of any other; a
-    fault's error stands out of the noise (``VISIBLE``); a sticky valve sticks and slips at
-    least twice. A window with a twin shows its label only if ``_beside_twin`` holds too."""
+    not asked beyond) and for at most 10 % of any other; a fault's error stands out of the
+    noise (``VISIBLE``); a sticky valve sticks and slips at least twice. A window with a twin
+    shows its label only if ``_beside_twin`` holds too."""
     c = case.config.controller
     limits = [v for v in (c.op_max, c.op_min) if 0.0 < v < 100.0]
     ends = [float(np.mean(rec.op >= 99.99)), float(np.mean(rec.op <= 0.01))]
