@@ -213,6 +213,16 @@ def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
         )
         return w.stop("insufficient_data")
     if miss_frac > p.max_missing_fraction:
+        manual = 0 if w.auto is None else int(np.sum(~w.auto))
+        if manual and (int(missing.sum()) - manual) / w.n <= p.max_missing_fraction:
+            # the manual-mode samples left out as gaps are what passes the limit: the loop's
+            # manual time, not the record, keeps the window from being judged
+            w.notes.append(
+                f"{100 * manual / w.n:.1f} % of the window in manual: more than the "
+                f"{100 * p.max_missing_fraction:.0f} % a window may bridge; judge a window "
+                "with less manual time"
+            )
+            return w.stop("manual_mode")
         w.notes.append(
             f"{100 * miss_frac:.1f} % of samples missing "
             f"(limit {100 * p.max_missing_fraction:.0f} %)"

@@ -35,6 +35,21 @@ def test_manual_mode_from_mode_signal_and_from_frozen_op() -> None:
     assert check_window(PV, np.full(N, 37.0)).verdict == "manual_mode"
 
 
+def test_manual_time_past_what_a_window_bridges_reads_manual_mode_not_missing_data() -> None:
+    """Manual samples are left out as gaps (methods §1 keeps AUTO samples only, from 90 %); past
+    the 5 % a window may bridge, the cause is the manual time, not a record with holes."""
+    auto = np.ones(N, dtype=bool)
+    auto[900:1060] = False  # 8 % in manual
+    rep = check_window(PV, OP, auto=auto)
+    assert rep.verdict == "manual_mode"
+    assert any("8.0 % of the window in manual" in n for n in rep.notes), rep.notes
+    pv = PV.copy()
+    pv[900:1060] = np.nan  # the same share missing from the record itself
+    assert check_window(pv, OP).verdict == "data_quality"
+    auto[900:1000] = True  # 3 % in manual: bridged and judged
+    assert check_window(PV, OP, auto=auto).verdict is None
+
+
 def test_saturation_needs_a_clamped_output() -> None:
     op = np.where(np.arange(N) < 1500, 100.0, OP)
     assert check_window(PV, op).verdict == "saturation"
