@@ -28,7 +28,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from isdb import ACCEPTED, load_isdb
-from model_option import chosen_model
+from model_option import add_decision_options, decision_params
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.cases import generate_cases
@@ -94,10 +94,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--lengths", type=int, nargs="+", default=[1000, 5000, 20000])
     ap.add_argument("-v", "--verbose", action="store_true")
-    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
+    add_decision_options(ap)
     args = ap.parse_args()
-    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+    params = decision_params(args)
     print(f"decision {args.decision}" + (f" ({args.model})" if args.model else ""))
     generated(args.seeds, tuple(args.lengths), args.verbose, params)
     isdb(params)

@@ -35,12 +35,11 @@ import argparse
 import collections
 import itertools
 import time
-from pathlib import Path
 
 import numpy as np
-from model_option import chosen_model
+from model_option import add_decision_options, decision_params
 
-from plantcheck.diagnosis import ChainParams, diagnose
+from plantcheck.diagnosis import diagnose
 from plantcheck.simulator.cases import simc_pi
 from plantcheck.simulator.loop import (
     ClosedLoop,
@@ -98,12 +97,11 @@ def manual_window(
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=4, help="draws of each cell (default 4)")
-    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
+    add_decision_options(ap)
     args = ap.parse_args()
     if args.seeds < 1:
         ap.error(f"--seeds {args.seeds}: give at least 1")
-    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+    params = decision_params(args)
     t0 = time.perf_counter()
     read: dict[tuple[float, bool], collections.Counter[str]] = collections.defaultdict(
         collections.Counter

@@ -34,12 +34,11 @@ one_blas_thread()  # before numpy loads, as the CLI does: a diagnosis' last digi
 import argparse
 import collections
 import time
-from pathlib import Path
 
 import numpy as np
-from model_option import chosen_model
+from model_option import add_decision_options, decision_params
 
-from plantcheck.diagnosis import ChainParams, diagnose
+from plantcheck.diagnosis import diagnose
 from plantcheck.simulator.cases import OTHER_PROCESS_SETS
 from plantcheck.simulator.loop import simulate_loop
 from plantcheck.simulator.plant_windows import CLASSES, generate_plant_window_cases
@@ -65,10 +64,9 @@ def main() -> None:
         help="process table (default: the benchmark's, simulator.cases.PROCESSES)",
     )  # fmt: skip
     ap.add_argument("-v", "--verbose", action="store_true", help="list every wrong window")
-    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
+    add_decision_options(ap)
     args = ap.parse_args()
-    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+    params = decision_params(args)
     table = OTHER_PROCESS_SETS.get(args.processes)
     dithered: collections.Counter[bool] = collections.Counter()
     t0 = time.perf_counter()

@@ -27,11 +27,10 @@ import argparse
 import collections
 import statistics
 import time
-from pathlib import Path
 
-from model_option import chosen_model
+from model_option import add_decision_options, decision_params
 
-from plantcheck.diagnosis import ChainParams, diagnose
+from plantcheck.diagnosis import diagnose
 from plantcheck.simulator.cases import generate_short_window_cases
 from plantcheck.simulator.loop import simulate_loop
 
@@ -41,10 +40,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--per-cell", type=int, default=4)
     ap.add_argument("-v", "--verbose", action="store_true", help="list every wrong window")
-    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
+    add_decision_options(ap)
     args = ap.parse_args()
-    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+    params = decision_params(args)
     t0 = time.perf_counter()
     found: collections.Counter[tuple[str, str, bool]] = collections.Counter()
     errors: dict[str, list[float]] = collections.defaultdict(list)

@@ -27,11 +27,10 @@ import argparse
 import collections
 import itertools
 import time
-from pathlib import Path
 
-from model_option import chosen_model
+from model_option import add_decision_options, decision_params
 
-from plantcheck.diagnosis import ChainParams, diagnose
+from plantcheck.diagnosis import diagnose
 from plantcheck.simulator.loop import (
     Disturbance,
     LoopConfig,
@@ -70,10 +69,9 @@ def window(
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("-v", "--verbose", action="store_true", help="list every false alarm")
-    ap.add_argument("--decision", choices=("rules", "learned"), default="rules")
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
+    add_decision_options(ap)
     args = ap.parse_args()
-    params = ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+    params = decision_params(args)
     t0 = time.perf_counter()
     alarms: collections.Counter[tuple[float, float]] = collections.Counter()
     windows: collections.Counter[tuple[float, float]] = collections.Counter()
