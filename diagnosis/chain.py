@@ -65,6 +65,7 @@ from plantcheck.diagnosis.shape_tests import (
 )
 from plantcheck.diagnosis.signal_shape import ShapeInput, shape_input
 from plantcheck.diagnosis.signal_tools import (
+    BoolArray,
     FloatArray,
     SignalSpectrum,
     detrend,
@@ -105,7 +106,6 @@ from plantcheck.diagnosis.tuning import (
 from plantcheck.diagnosis.tuning_proposal import TuningSettings, tuning_for, valve_first
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
-    BoolArray,
     WindowParams,
     WindowReport,
     check_window,
@@ -496,6 +496,7 @@ def _read_events(run: _Run) -> bool:
         run.p.stick_slip,
         fastest_process=None if fastest is None else fastest / run.ts,
         op_noise=win.op_noise,
+        bridged=win.bridged,
     )
     _events_into(diag, run.events, run.ts)
     decides = win.verdict is not None and run.events.test.verdict == "stiction"

@@ -13,8 +13,7 @@ import numpy as np
 from plantcheck.diagnosis.baseline import Baseline
 from plantcheck.diagnosis.chain import ChainParams, diagnose, diagnose_advanced
 from plantcheck.diagnosis.result import Diagnosis
-from plantcheck.diagnosis.signal_tools import FloatArray
-from plantcheck.diagnosis.window import BoolArray
+from plantcheck.diagnosis.signal_tools import BoolArray, FloatArray
 
 MIN_MV_COVERAGE = 0.5
 """Fewest finite MV samples (fraction of the window) for the advanced chain to run."""

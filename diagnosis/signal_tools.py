@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 ScalarT = TypeVar("ScalarT", bound=np.generic)
 IntArray = NDArray[np.intp]
+BoolArray = NDArray[np.bool_]
 
 _MAD_TO_SIGMA = 1.4826
 

@@ -47,6 +47,7 @@ import numpy as np
 
 from plantcheck.diagnosis.peaks import highest_peaks_apart, prominent_extremes
 from plantcheck.diagnosis.signal_tools import (
+    BoolArray,
     FloatArray,
     IntArray,
     first_order_lags,
@@ -806,6 +807,7 @@ def detect_stick_slip(
     params: StickSlipParams | None = None,
     fastest_process: float | None = None,
     op_noise: float | None = None,
+    bridged: BoolArray | None = None,
 ) -> StickSlipResult:
     """Find stick-slip events in one window (methods §4.10; Kano et al. 2004 principle).
 
@@ -827,6 +829,10 @@ def detect_stick_slip(
         process' own lag and dead time there.
     op_noise:
         OP's noise σ, % (``signal_tools.noise_sigma(op)``), where the caller has it.
+    bridged:
+        Samples the window checks filled in (missing, or left out in manual): an event whose
+        stuck phase or slip touches them is read off the straight line drawn across them and
+        the controller catching up after it, not off a valve, and is not counted.
 
     Events come back as sample indices (any sample time: every threshold is in samples or
     noise multiples). A *strong* event is one the two-model test confirms (slow or fast loop);
@@ -931,7 +937,7 @@ def detect_stick_slip(
     moves = dict(zip(asked, _moves_after([ranked[i][1][0][0] for i in asked], pv, sig, dyn,
                                          sp_steps, integrating, p), strict=True))  # fmt: skip
     for i, (_, ((ev, _, _, _, kick), _)) in enumerate(ranked):
-        if too_large[i]:
+        if too_large[i] or (bridged is not None and bridged[ev.start : ev.end + 1].any()):
             continue
         strong = sum(e.strong for e in events) < strong_needed and confirmed.get(i, False)
         if strong and kick > p.step_kick_fraction and _near_step(ev, sp_steps, p.jump_horizon):

@@ -16,13 +16,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from plantcheck.diagnosis.signal_tools import (
+    BoolArray,
     FloatArray,
     distinct_count,
     moving_average,
     noise_sigma,
 )
 
-BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
 
 
@@ -73,6 +73,12 @@ class WindowParams:
     """An output at its own extreme for this many samples in a row rests at a limit [R]."""
     clamp_error_noise: float = 3.0
     """... while the control error stays off zero by this many noise σ (PV off set point) [R]."""
+    max_held_runs: int = 3
+    """At most this many runs of an OP held exactly still (off its extremes, under a live PV)
+    are read as manual stretches: an operator's few actions, not a controller's error gap [R]."""
+    held_rest_moving: float = 0.5
+    """... and only where OP changes on at least this share of the other sample steps: a
+    quantised or step-hold compressed OP holds everywhere [R]."""
 
 
 @dataclass(frozen=True)
@@ -107,6 +113,9 @@ class WindowReport:
     take it from here rather than each computing it again."""
     op_noise: float | None = None
     """Noise σ of the cleaned OP, % (None where the window was refused)."""
+    bridged: BoolArray | None = None
+    """Samples the checks filled in (missing, or left out in manual); None where none were:
+    what the record shows there is the checks' line, not the loop."""
 
 
 def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
@@ -160,6 +169,8 @@ class _Window:
     clamp: Clamp | None = None
     error_noise: float = 0.0
     """Noise σ of SP − PV, from the output stage on."""
+    bridged: BoolArray | None = None
+    """Samples the gap stage filled in (``WindowReport.bridged``)."""
 
     def stop(self, verdict: str, segment: tuple[int, int] | None = None) -> WindowReport:
         """The report of a window refused with ``verdict``."""
@@ -174,6 +185,65 @@ def _length(w: _Window, p: WindowParams) -> WindowReport | None:
         return None
     w.notes.append(f"only {w.n} samples; at least {p.min_samples} are needed for a diagnosis")
     return w.stop("insufficient_data")
+
+
+def held_output(op: FloatArray, pv: FloatArray, p: WindowParams | None = None) -> BoolArray:
+    """Samples where OP is held exactly still under a live PV, away from its own extremes:
+    a controller in manual that the record does not flag (issue 46 item 1).
+
+    A PI law in automatic moves its output with every live PV sample (the proportional action
+    alone does), so an output that repeats its value bit for bit for ``min_clamp_samples`` or
+    more while PV keeps changing (on at least half of the run's steps) was not computed by the
+    controller: an operator held it (Åström & Hägglund, 2006, §3.5, bumpless transfer: OP
+    stands still in manual and the controller takes over from it). Held at the window's own
+    extreme it is a clamp, read by the output stage. Left alone where OP also holds on more
+    than ``1 - held_rest_moving`` of the other steps (a quantised or step-hold compressed OP)
+    or where more than ``max_held_runs`` runs hold (a controller with an error gap). A hold
+    that runs to the window's end is left alone too: an interpolating historian's export holds
+    the last stored value there (corpus windows of seed 202: 39 of 2,000 end so, none hold
+    inside), so only a stretch OP leaves again, the return to automatic, is read.
+    OP in %; PV in engineering units; NaN never holds.
+    """
+    p = p or WindowParams()
+    n = int(op.size)
+    held = np.zeros(n, dtype=bool)
+    still = np.diff(op) == 0.0  # a held output repeats its value bit for bit (NaN never)
+    if int(np.count_nonzero(still)) < p.min_clamp_samples - 1:
+        return held  # no run long enough: most windows stop here
+    starts, stops = _runs(still)  # step k joins samples k and k + 1
+    extremes = (float(np.nanmax(op)), float(np.nanmin(op)))  # a clamp's, read by _output
+    runs = []
+    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
+        if b + 1 - a < p.min_clamp_samples or float(op[a]) in extremes:
+            continue
+        if b + 1 == n:
+            continue  # a historian's export holds the last stored value to the window's end
+        if float(np.mean(np.diff(pv[a : b + 1]) != 0.0)) < 0.5:
+            continue  # the PV stands still too: a stalled record, not an operator
+        runs.append((a, b + 1))
+    if not runs or len(runs) > p.max_held_runs:
+        return held
+    for a, b in runs:
+        held[a:b] = True
+    rest = ~(held[1:] | held[:-1])
+    if rest.any() and float(np.mean(still[rest])) > 1.0 - p.held_rest_moving:
+        return np.zeros(n, dtype=bool)
+    return held
+
+
+def _held(w: _Window, p: WindowParams) -> WindowReport | None:
+    """An unflagged manual stretch (``held_output``) is left out as the mode flag's would be."""
+    held = held_output(w.op, w.pv, p)
+    if not held.any():
+        return None
+    w.indices["held_output_fraction"] = float(np.mean(held))
+    w.notes.append(
+        f"OP held exactly still on {100 * float(np.mean(held)):.1f} % of the window while PV "
+        "kept moving: no controller in automatic does that, so the loop was in manual there "
+        "(read as manual-mode samples; map the loop's mode tag to say so)"
+    )
+    w.auto = ~held if w.auto is None else w.auto & ~held
+    return None
 
 
 def _mode(w: _Window, p: WindowParams) -> WindowReport | None:
@@ -232,6 +302,7 @@ def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
     w.pv, gap_pv = fill_short_gaps(np.asarray(w.pv, dtype=np.float64), p.max_fill_gap)
     w.op, gap_op = fill_short_gaps(np.asarray(w.op, dtype=np.float64), p.max_fill_gap)
     if miss_frac > 0:
+        w.bridged = missing
         w.notes.append(
             f"{int(missing.sum())} missing samples filled (longest gap {max(gap_pv, gap_op)})"
         )
@@ -372,7 +443,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     op_noise = noise_sigma(op_f)  # every report from here on carries it
     if steps.size == 0 and (w.clamp.fraction == 0 or seg_len < needed):
         return WindowReport(None, notes, pv_f, op_f, sp_f, (0, n), indices, w.quantised,
-                            error_noise=sigma_e, op_noise=op_noise)  # fmt: skip
+                            error_noise=sigma_e, op_noise=op_noise, bridged=w.bridged)  # fmt: skip
     if seg_len < needed:
         notes.append(
             f"{steps.size} set-point step(s) with their responses leave no settled stretch of "
@@ -380,7 +451,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
         )
         return WindowReport(
             "insufficient_data", notes, pv_f, op_f, sp_f, segment, indices, w.quantised, True,
-            tuple(steps.tolist()), error_noise=sigma_e, op_noise=op_noise,
+            tuple(steps.tolist()), error_noise=sigma_e, op_noise=op_noise, bridged=w.bridged,
         )  # fmt: skip
     if steps.size:
         notes.append(
@@ -396,12 +467,13 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
     indices["sp_steps"] = float(steps.size)
     return WindowReport(
         None, notes, pv_f, op_f, sp_f, segment, indices, w.quantised, False,
-        tuple(steps.tolist()), segments, sigma_e, op_noise,
+        tuple(steps.tolist()), segments, sigma_e, op_noise, w.bridged,
     )  # fmt: skip
 
 
 REFUSING_STAGES: tuple[Callable[[_Window, WindowParams], WindowReport | None], ...] = (
     _length,
+    _held,
     _mode,
     _gaps,
     _measurement,

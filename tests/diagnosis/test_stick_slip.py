@@ -113,6 +113,18 @@ def test_a_slip_before_op_turns_is_found_from_the_pv_jump() -> None:
     assert detect_stick_slip(pv, op, sp, params=turns_only).events == ()
 
 
+def test_a_slip_across_samples_the_checks_filled_in_is_not_counted() -> None:
+    """Where the window checks bridged a manual stretch or a gap, the stuck phase and the
+    slip are their straight line and the controller catching up, not a valve."""
+    pv, op, sp = _slip_while_op_ramps()
+    bridged = np.zeros(pv.size, dtype=bool)
+    bridged[600:640] = True  # away from the slip: the event stays
+    assert detect_stick_slip(pv, op, sp, bridged=bridged).test.verdict == "stiction"
+    bridged[230:250] = True  # within its stuck phase
+    res = detect_stick_slip(pv, op, sp, bridged=bridged)
+    assert res.events == () and res.test.verdict != "stiction"
+
+
 def test_one_slip_is_one_event() -> None:
     """A slip found both from OP's turn and from the PV's jump is listed once."""
     _, res = _detect(_slow_loop(valve="he", S=5.0, J=4.0))

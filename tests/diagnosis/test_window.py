@@ -50,6 +50,28 @@ def test_manual_time_past_what_a_window_bridges_reads_manual_mode_not_missing_da
     assert check_window(PV, OP, auto=auto).verdict is None
 
 
+def test_an_output_held_still_under_a_live_pv_reads_as_manual_without_the_mode_flag() -> None:
+    """No controller in automatic holds OP bit for bit while PV moves: an operator did
+    (issue 46 item 1); a hold to the window's end, a quantised OP or a clamp are not that."""
+    op = OP.copy()
+    op[900:1060] = op[900]  # 8 % held mid-range, then the controller moves OP again
+    rep = check_window(PV, op)
+    assert rep.verdict == "manual_mode", rep.notes
+    assert any("OP held exactly still on 8.0 %" in n for n in rep.notes), rep.notes
+    assert diagnose(PV, op, 1.0).cause == "manual_mode"
+    op[1000:1060] = OP[1000:1060]  # 5 % held: bridged and judged, with the note
+    rep = check_window(PV, op)
+    assert rep.verdict is None and rep.indices["held_output_fraction"] == 0.05, rep.notes
+    tail = OP.copy()
+    tail[1700:] = tail[1700]  # an export holding its last stored value
+    assert "held_output_fraction" not in check_window(PV, tail).indices
+    coarse = np.round(op / 0.5) * 0.5  # an OP recorded in 0.5 % steps holds everywhere
+    assert "held_output_fraction" not in check_window(PV, coarse).indices
+    clamp = OP.copy()
+    clamp[900:1060] = OP.max() + 1.0  # at the window's own extreme: a limit, not an operator
+    assert "held_output_fraction" not in check_window(PV, clamp).indices
+
+
 def test_saturation_needs_a_clamped_output() -> None:
     op = np.where(np.arange(N) < 1500, 100.0, OP)
     assert check_window(PV, op).verdict == "saturation"
