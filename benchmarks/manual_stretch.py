@@ -1,22 +1,29 @@
-"""Healthy loops with a stretch in manual, diagnosed with and without the mode flag (issue 46).
+"""Healthy loops with a stretch in manual or a transmitter frozen for a while (issue 46 items 1
+and 7), diagnosed with and without the mode flag.
 
 Many plants map no auto/manual tag. An operator who takes a loop in manual holds OP still while
 the loads move the PV; a diagnosis that does not know it reads a loop whose OP stood still on a
-moving error, which no PI law does. The grid: self-regulating loops (FOPDT, lag-dominant or
-balanced), SIMC-tuned, under coloured loads, 3,600 samples at 1 s, three noise levels, put in
-manual (``ClosedLoop.auto`` False: OP held, bumpless return) for 0, 3, 10 or 30 % of the window in
-its middle, ``--seeds`` draws of each cell: every window is healthy. Prints, per manual share,
-the causes read without the mode flag and with it (``auto``: the chain leaves manual samples out,
-and a window below ``WindowParams.min_auto_fraction`` in automatic reads ``manual_mode``).
+moving error, which no PI law does. A transmitter that freezes shows the controller a constant
+error: OP ramps on a straight line while the recorded PV stands still, then the PV jumps to
+where the process went, which reads like a sticky valve's stuck phase and slip. The grid:
+self-regulating loops (FOPDT, lag-dominant or balanced), SIMC-tuned, under coloured loads,
+3,600 samples at 1 s, three noise levels, put in manual (``ClosedLoop.auto`` False: OP held,
+bumpless return) or with the transmitter frozen (``ClosedLoop.frozen_pv``) for 0, 3, 10 or 30 %
+of the window in its middle, ``--seeds`` draws of each cell: every window is healthy. Prints,
+per share, the causes read without the mode flag and with it (``auto``: the chain leaves manual
+samples out, and a window below ``WindowParams.min_auto_fraction`` in automatic reads
+``manual_mode``), and with the transmitter frozen.
 
 Fifty-first session: without the flag the rules read 7 of the 24 windows 10 % in manual as
 sticky valves, the learned decision 12; with it, 10 % and 30 % read ``manual_mode``.
 Fifty-second session: the window checks read an OP held bit for bit under a live PV, away from
-its extremes and not to the window's end, as manual samples (``window.held_output``), and the
-stick-slip search counts no event across the samples the checks filled in; the rules now read
-10 % and 30 % as ``manual_mode`` with the flag or without, and 3 % in manual (bridged) as the
+its extremes and not to the window's end, as manual samples (``window.held_output``), a PV held
+bit for bit while OP ramps without its noise as a frozen transmitter (``window.frozen_pv``),
+and the stick-slip search counts no event across the samples the checks filled in. The rules
+now read 10 % and 30 % in manual as ``manual_mode`` with the flag or without, frozen as
+``data_quality`` (the code before: 21 and 13 of 24 as sticky valves), and 3 % (bridged) as the
 same loops never in manual read (0 %: stiction 7 of 24, the rules' own false alarms on the
-balanced process; 3 %: 7, was 7 unflagged and 10 flagged).
+balanced process; 3 % in manual 7, was 7 unflagged and 10 flagged; 3 % frozen 7, was 13).
 
 ``--decision learned``: the learned decision names the cause, ``--model FILE`` another model
 file than the shipped one. The corpus the decision is fitted on draws no manual stretch (the
@@ -59,17 +66,18 @@ PROCESSES = (
 """A lag-dominant and a balanced process (s)."""
 NOISES = (0.05, 0.2, 0.5)
 """PV noise σ, % of span."""
-MANUAL_SHARES = (0.0, 0.03, 0.1, 0.3)
-"""The share of the window in manual, centred in it (0: the same loops never in manual, the
-reference: what the diagnosis reads on them without any manual stretch)."""
+SHARES = (0.0, 0.03, 0.1, 0.3)
+"""The share of the window in manual or frozen, centred in it (0: the same loops never in
+manual, the reference: what the diagnosis reads on them without any such stretch)."""
 SAMPLES = 3600
 
 
-def manual_window(
-    proc: Process, noise: float, share: float, seed: int
+def stretch_window(
+    proc: Process, noise: float, share: float, seed: int, frozen: bool = False
 ) -> tuple[LoopRecord, np.ndarray]:
-    """One healthy window with the middle ``share`` of it in manual, and its mode flag (True
-    in automatic)."""
+    """One healthy window with the middle ``share`` of it in manual (or, ``frozen``, with the
+    transmitter frozen there: the controller, in automatic, and the record see the PV's last
+    value), and its mode flag (True in automatic)."""
     cfg = LoopConfig(
         process=proc,
         controller=simc_pi(proc),
@@ -83,16 +91,18 @@ def manual_window(
     w = cfg.warmup_samples
     a = w + int((0.5 - share / 2) * SAMPLES)
     b = w + int((0.5 + share / 2) * SAMPLES)
-    runs = []
-    for lo, hi, auto in ((0, a, True), (a, b, False), (b, t.size, True)):
-        loop.auto = auto
+    runs: list[tuple[list[float], list[float], list[float]]] = []
+    for lo, hi, live in ((0, a, True), (a, b, False), (b, t.size, True)):
+        loop.auto = live or frozen
+        loop.frozen_pv = None if live or not frozen or not runs else runs[-1][0][-1]
         runs.append(loop.run(sp[lo:hi].tolist(), load[lo:hi].tolist(), out_d[lo:hi].tolist(),
                              meas[lo:hi].tolist()))  # fmt: skip
     pv, op, mv = (
         np.concatenate([np.asarray(r[i], dtype=np.float64) for r in runs]) for i in range(3)
     )
     mode = np.ones(SAMPLES, dtype=bool)
-    mode[a - w : b - w] = False
+    if not frozen:
+        mode[a - w : b - w] = False
     return loop_record(cfg, rng, t, sp, pv, op, mv), mode
 
 
@@ -105,23 +115,29 @@ def main() -> None:
         ap.error(f"--seeds {args.seeds}: give at least 1")
     params = decision_params(args)
     t0 = time.perf_counter()
-    read: dict[tuple[float, bool], collections.Counter[str]] = collections.defaultdict(
+    read: dict[tuple[float, str], collections.Counter[str]] = collections.defaultdict(
         collections.Counter
     )
-    grid = itertools.product(PROCESSES, NOISES, MANUAL_SHARES, range(args.seeds))
+    grid = itertools.product(PROCESSES, NOISES, SHARES, range(args.seeds))
     for proc, noise, share, seed in grid:
-        rec, mode = manual_window(proc, noise, share, seed)
-        for flagged in (False, True):
-            d = diagnose(rec.pv, rec.op, 1.0, sp=rec.sp, auto=mode if flagged else None,
-                         loop_type="temperature", quantify=False, params=params)  # fmt: skip
-            read[(share, flagged)][d.cause] += 1
+        for frozen in (False, True):
+            rec, mode = stretch_window(proc, noise, share, seed, frozen)
+            for flagged in (False, True) if not frozen else (False,):
+                d = diagnose(rec.pv, rec.op, 1.0, sp=rec.sp, auto=mode if flagged else None,
+                             loop_type="temperature", quantify=False, params=params)  # fmt: skip
+                how = "frozen" if frozen else "flagged" if flagged else "manual"
+                read[(share, how)][d.cause] += 1
     windows = len(PROCESSES) * len(NOISES) * args.seeds
-    print(f"healthy loops with a manual stretch: {windows} windows per share, decision "
-          f"{args.decision}, {time.perf_counter() - t0:.0f} s")  # fmt: skip
-    for share, flagged in itertools.product(MANUAL_SHARES, (False, True)):
-        causes = ", ".join(f"{c} {k}" for c, k in read[(share, flagged)].most_common())
-        how = "with the mode flag   " if flagged else "without the mode flag"
-        print(f"{100 * share:3.0f} % in manual, {how}: {causes}")
+    print(f"healthy loops with a manual stretch or a frozen transmitter: {windows} windows "
+          f"per share, decision {args.decision}, {time.perf_counter() - t0:.0f} s")  # fmt: skip
+    rows = {
+        "manual": "in manual, without the mode flag",
+        "flagged": "in manual, with the mode flag   ",
+        "frozen": "with the transmitter frozen     ",
+    }
+    for share, how in itertools.product(SHARES, rows):
+        causes = ", ".join(f"{c} {k}" for c, k in read[(share, how)].most_common())
+        print(f"{100 * share:3.0f} % {rows[how]}: {causes}")
 
 
 if __name__ == "__main__":

@@ -218,7 +218,12 @@ def noise_sigma(x: FloatArray) -> float:
     """
     if x.size < 4:
         return 0.0
-    d2 = np.diff(x, 2)
+    return sigma_from_second_differences(np.diff(x, 2))
+
+
+def sigma_from_second_differences(d2: FloatArray) -> float:
+    """``noise_sigma`` from second differences already taken (some of them, say where the
+    signal moves): their median absolute deviation over √6, robust to a few large ones."""
     return float(_MAD_TO_SIGMA * median(np.abs(d2 - median(d2))) / np.sqrt(6.0))
 
 

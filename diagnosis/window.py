@@ -21,6 +21,7 @@ from plantcheck.diagnosis.signal_tools import (
     distinct_count,
     moving_average,
     noise_sigma,
+    sigma_from_second_differences,
 )
 
 IntArray = NDArray[np.int64]
@@ -76,6 +77,13 @@ class WindowParams:
     max_held_runs: int = 3
     """At most this many runs of an OP held exactly still (off its extremes, under a live PV)
     are read as manual stretches: an operator's few actions, not a controller's error gap [R]."""
+    frozen_min_samples: int = 30
+    """A PV held bit for bit this many samples or more can be a frozen transmitter: an
+    interpolating export draws PV and OP straight across shorter stretches (corpus windows
+    of seed 202: 12-13 samples) [R]."""
+    frozen_op_noise: float = 0.1
+    """A PV held bit for bit while OP's noise σ stays under this share of its noise σ over the
+    window (OP on the straight line of a constant error) is a frozen transmitter [R]."""
     held_rest_moving: float = 0.5
     """... and only where OP changes on at least this share of the other sample steps: a
     quantised or step-hold compressed OP holds everywhere [R]."""
@@ -171,6 +179,8 @@ class _Window:
     """Noise σ of SP − PV, from the output stage on."""
     bridged: BoolArray | None = None
     """Samples the gap stage filled in (``WindowReport.bridged``)."""
+    frozen: int = 0
+    """Samples left out where the transmitter froze (``frozen_pv``)."""
 
     def stop(self, verdict: str, segment: tuple[int, int] | None = None) -> WindowReport:
         """The report of a window refused with ``verdict``."""
@@ -185,6 +195,29 @@ def _length(w: _Window, p: WindowParams) -> WindowReport | None:
         return None
     w.notes.append(f"only {w.n} samples; at least {p.min_samples} are needed for a diagnosis")
     return w.stop("insufficient_data")
+
+
+def _exact_holds(x: FloatArray, min_samples: int, to_end: bool = False) -> list[tuple[int, int]]:
+    """[start, stop) of each run of at least ``min_samples`` samples that repeat one value bit
+    for bit (NaN never holds); one that runs to the window's last sample only if ``to_end``."""
+    still = np.diff(x) == 0.0
+    if int(np.count_nonzero(still)) < min_samples - 1:
+        return []  # no run long enough: most windows stop here
+    starts, stops = _runs(still)  # step k joins samples k and k + 1
+    n = int(x.size)
+    return [
+        (a, b + 1)
+        for a, b in zip(starts.tolist(), stops.tolist(), strict=True)
+        if b + 1 - a >= min_samples and (to_end or b + 1 < n)
+    ]
+
+
+def _mask(n: int, runs: list[tuple[int, int]]) -> BoolArray:
+    """The samples of ``runs`` ([start, stop) each) in an ``n``-sample mask."""
+    mask = np.zeros(n, dtype=bool)
+    for a, b in runs:
+        mask[a:b] = True
+    return mask
 
 
 def held_output(op: FloatArray, pv: FloatArray, p: WindowParams | None = None) -> BoolArray:
@@ -202,33 +235,91 @@ def held_output(op: FloatArray, pv: FloatArray, p: WindowParams | None = None) -
     that runs to the window's end is left alone too: an interpolating historian's export holds
     the last stored value there (corpus windows of seed 202: 39 of 2,000 end so, none hold
     inside), so only a stretch OP leaves again, the return to automatic, is read.
-    OP in %; PV in engineering units; NaN never holds.
+    OP in %; PV in engineering units.
     """
     p = p or WindowParams()
     n = int(op.size)
-    held = np.zeros(n, dtype=bool)
-    still = np.diff(op) == 0.0  # a held output repeats its value bit for bit (NaN never)
-    if int(np.count_nonzero(still)) < p.min_clamp_samples - 1:
-        return held  # no run long enough: most windows stop here
-    starts, stops = _runs(still)  # step k joins samples k and k + 1
+    holds = _exact_holds(op, p.min_clamp_samples)
+    if not holds:
+        return np.zeros(n, dtype=bool)
     extremes = (float(np.nanmax(op)), float(np.nanmin(op)))  # a clamp's, read by _output
-    runs = []
-    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
-        if b + 1 - a < p.min_clamp_samples or float(op[a]) in extremes:
-            continue
-        if b + 1 == n:
-            continue  # a historian's export holds the last stored value to the window's end
-        if float(np.mean(np.diff(pv[a : b + 1]) != 0.0)) < 0.5:
-            continue  # the PV stands still too: a stalled record, not an operator
-        runs.append((a, b + 1))
+    runs = [
+        (a, b)
+        for a, b in holds
+        if float(op[a]) not in extremes
+        # a PV standing still too is a stalled record, not an operator
+        and float(np.mean(np.diff(pv[a:b]) != 0.0)) >= 0.5
+    ]
     if not runs or len(runs) > p.max_held_runs:
-        return held
-    for a, b in runs:
-        held[a:b] = True
+        return np.zeros(n, dtype=bool)
+    held = _mask(n, runs)
     rest = ~(held[1:] | held[:-1])
-    if rest.any() and float(np.mean(still[rest])) > 1.0 - p.held_rest_moving:
+    if rest.any() and float(np.mean(np.diff(op)[rest] == 0.0)) > 1.0 - p.held_rest_moving:
         return np.zeros(n, dtype=bool)
     return held
+
+
+def _straight_runs(x: FloatArray, min_samples: int) -> BoolArray:
+    """Samples of runs of at least ``min_samples`` on one sloping straight line (second
+    differences within float rounding of zero, first ones not zero): an interpolating export's
+    segments, or a ramp no noise reaches."""
+    n = int(x.size)
+    if n < 3:
+        return np.zeros(n, dtype=bool)
+    d = np.diff(x)
+    # on a line and moving: an output resting at a clamp is constant, not a drawn line
+    flat = (np.abs(np.diff(d)) <= 1e-9 * np.maximum(1.0, np.abs(x[1:-1]))) & (d[1:] != 0.0)
+    starts, stops = _runs(flat)  # second difference k spans samples k to k + 2
+    mask = np.zeros(n, dtype=bool)
+    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
+        if b + 2 - a >= min_samples:
+            mask[a : b + 2] = True
+    return mask
+
+
+def frozen_pv(pv: FloatArray, op: FloatArray, p: WindowParams | None = None) -> BoolArray:
+    """Samples where the PV repeats its value bit for bit while OP moves on a straight line:
+    a transmitter frozen for part of the window (issue 46 items 1 and 7), or a DCS holding the
+    last good value of a failed measurement.
+
+    The controller sees the frozen value too, so its error is constant and a PI law's output
+    ramps on a straight line, the integral of a constant, without the measurement noise it
+    carries elsewhere: OP's noise σ over the run under ``frozen_op_noise`` × its noise σ over
+    the window. A live PV that only the historian holds (quantised, compressed, an
+    interpolating export's tail) leaves the controller's OP as noisy as anywhere, and a
+    sticky valve's stuck phase likewise (the controller sees the live PV): neither is read.
+    Runs of at least ``frozen_min_samples`` samples, at most ``max_held_runs`` of them, OP
+    moving within each; an OP record that runs on straight lines outside them too (an
+    interpolating export: corpus windows of seed 202 held PV and OP straight together in 11
+    of 2,000 such records) is left alone.
+    PV in engineering units; OP in %.
+    """
+    p = p or WindowParams()
+    n = int(pv.size)
+    # a transmitter frozen now holds to the window's end: the live reading tells
+    holds = _exact_holds(pv, p.frozen_min_samples, to_end=True)
+    if not holds or len(holds) > p.max_held_runs:
+        return np.zeros(n, dtype=bool)
+    rest = ~_mask(n, holds)
+    op_noise = _moving_noise(op[rest], 4)
+    if not op_noise > 0.0 or _straight_runs(op, p.min_clamp_samples)[rest].any():
+        return np.zeros(n, dtype=bool)  # an OP record that draws straight lines by itself
+    ratio = p.frozen_op_noise
+    runs = [
+        (a, b) for a, b in holds if _moving_noise(op[a:b], p.min_clamp_samples) < ratio * op_noise
+    ]
+    return _mask(n, runs)
+
+
+def _moving_noise(x: FloatArray, least: int) -> float:
+    """Noise σ of ``x`` from its second differences where it moves (both first differences
+    around one non-zero), as ``noise_sigma`` reads it: an output resting at a clamp is not
+    noiseless, only still. NaN with fewer than ``least`` such steps (nothing to read)."""
+    d = np.diff(x)
+    dd = np.diff(d)[(d[:-1] != 0.0) & (d[1:] != 0.0)]
+    if dd.size < max(least, 1):
+        return float("nan")
+    return sigma_from_second_differences(dd)
 
 
 def _held(w: _Window, p: WindowParams) -> WindowReport | None:
@@ -243,6 +334,25 @@ def _held(w: _Window, p: WindowParams) -> WindowReport | None:
         "(read as manual-mode samples; map the loop's mode tag to say so)"
     )
     w.auto = ~held if w.auto is None else w.auto & ~held
+    return None
+
+
+def _frozen(w: _Window, p: WindowParams) -> WindowReport | None:
+    """A transmitter frozen for part of the window (``frozen_pv``): those samples are left
+    out as missing ones, PV and OP alike (the controller acted on the frozen value)."""
+    frozen = frozen_pv(w.pv, w.op, p)
+    if not frozen.any():
+        return None
+    w.frozen = int(frozen.sum())
+    w.indices["frozen_pv_fraction"] = w.frozen / w.n
+    w.notes.append(
+        f"PV repeated its value bit for bit on {100 * w.frozen / w.n:.1f} % of the window while "
+        "OP ramped on a straight line (the controller saw a constant error): the transmitter "
+        "froze there or the DCS held a failed measurement's last value; left out as missing "
+        "(check the transmitter's live reading)"
+    )
+    w.pv = np.where(frozen, np.nan, w.pv)
+    w.op = np.where(frozen, np.nan, w.op)
     return None
 
 
@@ -293,8 +403,9 @@ def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
                 "with less manual time"
             )
             return w.stop("manual_mode")
+        frozen = f", the transmitter frozen on {100 * w.frozen / w.n:.1f} %" if w.frozen else ""
         w.notes.append(
-            f"{100 * miss_frac:.1f} % of samples missing "
+            f"{100 * miss_frac:.1f} % of samples missing{frozen} "
             f"(limit {100 * p.max_missing_fraction:.0f} %)"
         )
         return w.stop("data_quality")
@@ -474,6 +585,7 @@ def _set_point(w: _Window, p: WindowParams) -> WindowReport:
 REFUSING_STAGES: tuple[Callable[[_Window, WindowParams], WindowReport | None], ...] = (
     _length,
     _held,
+    _frozen,
     _mode,
     _gaps,
     _measurement,

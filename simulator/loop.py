@@ -226,6 +226,9 @@ class ClosedLoop:
         self.x2 = 0.0
         self.integral = cfg.u0  # integral part of the positional PI, starts at the bias
         self.auto = True
+        self.frozen_pv: float | None = None
+        """A transmitter frozen at this value (% of span): the controller and the record see
+        it instead of the process (None: a live measurement)."""
         self.a_filter = math.exp(-ts / cfg.pv_filter_s) if cfg.pv_filter_s > 0 else 0.0
         self.pv_filtered: float | None = None
 
@@ -264,7 +267,7 @@ class ClosedLoop:
         fopdt, lag2, zero = p.kind == "fopdt", p.tau2_s > 0, p.zero_s
         a1, a2, tau2 = self.a1, self.a2, p.tau2_s
         b1, b2, b_int = p.K * (1 - a1), 1 - a2, p.K * ts
-        a_filter, pv_filtered = self.a_filter, self.pv_filtered
+        a_filter, pv_filtered, frozen = self.a_filter, self.pv_filtered, self.frozen_pv
         x1, x2, integral = self.x1, self.x2, self.integral
         flow = _flow_characteristic(cfg)
         pvs: list[float] = []
@@ -278,6 +281,8 @@ class ClosedLoop:
             if a_filter:
                 prev = pv_meas if pv_filtered is None else pv_filtered
                 pv_meas = pv_filtered = a_filter * prev + (1.0 - a_filter) * pv_meas
+            if frozen is not None:
+                pv_meas = frozen
             e = sp_k - pv_meas
             if auto:
                 u_unsat = integral + kc * e

@@ -72,6 +72,36 @@ def test_an_output_held_still_under_a_live_pv_reads_as_manual_without_the_mode_f
     assert "held_output_fraction" not in check_window(PV, clamp).indices
 
 
+def _frozen_at(start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """PV frozen over [start, stop) as the controller sees it: its error is constant there,
+    so its integral action ramps OP on a straight line."""
+    pv, op = PV.copy(), OP.copy()
+    pv[start:stop] = pv[start]
+    op[start:stop] = op[start] + 0.01 * np.arange(stop - start)
+    op[stop:] += op[stop - 1] - OP[stop - 1]
+    return pv, op
+
+
+def test_a_transmitter_frozen_for_part_of_the_window_is_left_out_and_named() -> None:
+    """PV repeating its value bit for bit while OP ramps without its noise (issue 46 items 1
+    and 7): not a stuck phase, a measurement the controller saw frozen."""
+    pv, op = _frozen_at(900, 1060)  # 8 %: more than a window may bridge
+    rep = check_window(pv, op)
+    assert rep.verdict == "data_quality", rep.notes
+    assert any("transmitter froze" in n for n in rep.notes), rep.notes
+    assert any("the transmitter frozen on 8.0 %" in n for n in rep.notes), rep.notes
+    pv, op = _frozen_at(900, 960)  # 3 %: bridged, judged, noted
+    rep = check_window(pv, op)
+    assert rep.verdict is None and rep.indices["frozen_pv_fraction"] == 0.03, rep.notes
+    assert rep.bridged is not None and rep.bridged[900:960].all()
+    held = PV.copy()
+    held[900:1060] = held[900]  # a historian holding a live PV: OP keeps its noise
+    assert "frozen_pv_fraction" not in check_window(held, OP).indices
+    pv, op = _frozen_at(900, 1060)
+    drawn = np.interp(np.arange(N), np.arange(0, N, 20), op[::20])  # an interpolated export
+    assert "frozen_pv_fraction" not in check_window(pv, drawn).indices
+
+
 def test_saturation_needs_a_clamped_output() -> None:
     op = np.where(np.arange(N) < 1500, 100.0, OP)
     assert check_window(PV, op).verdict == "saturation"
