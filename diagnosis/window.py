@@ -122,8 +122,9 @@ class WindowReport:
     op_noise: float | None = None
     """Noise σ of the cleaned OP, % (None where the window was refused)."""
     bridged: BoolArray | None = None
-    """Samples the checks filled in (missing, or left out in manual); None where none were:
-    what the record shows there is the checks' line, not the loop."""
+    """Samples of the gaps longer than ``max_fill_gap`` that the checks drew a straight line
+    across (missing, or left out in manual or as a frozen transmitter); None where there were
+    none: what the record shows there is the checks' line, not the loop."""
 
 
 def _runs(mask: BoolArray) -> tuple[IntArray, IntArray]:
@@ -413,7 +414,11 @@ def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
     w.pv, gap_pv = fill_short_gaps(np.asarray(w.pv, dtype=np.float64), p.max_fill_gap)
     w.op, gap_op = fill_short_gaps(np.asarray(w.op, dtype=np.float64), p.max_fill_gap)
     if miss_frac > 0:
-        w.bridged = missing
+        starts, stops = _runs(missing)
+        long = [(a, b) for a, b in zip(starts.tolist(), stops.tolist(), strict=True)
+                if b - a > p.max_fill_gap]  # fmt: skip
+        # a forward-filled sample or three draws nothing; a longer gap is a straight line
+        w.bridged = _mask(w.n, long) if long else None
         w.notes.append(
             f"{int(missing.sum())} missing samples filled (longest gap {max(gap_pv, gap_op)})"
         )

@@ -186,6 +186,18 @@ def test_chain_reports_events_and_a_sized_estimate() -> None:
     assert all({"start", "end", "op_travel", "pv_jump"} == set(e) for e in out["events"])
 
 
+def test_single_missing_samples_do_not_hide_a_slip() -> None:
+    """Historians drop a sample here and there; a forward-filled one draws no stuck phase, so
+    only longer gaps (a straight line across them) keep an event from being counted."""
+    r = simulate_loop(_slow_loop(valve="he", S=4.0, J=3.0))
+    d = diagnose(r.pv, r.op, 10.0, sp=r.sp, loop_type="pressure")
+    pv = r.pv.copy()
+    for e in d.stiction.events:  # one sample missing in each event's stuck phase
+        pv[int(e.start / 10.0) + 2] = np.nan
+    gappy = diagnose(pv, r.op, 10.0, sp=r.sp, loop_type="pressure")
+    assert gappy.cause == "stiction" and len(gappy.stiction.events) == len(d.stiction.events)
+
+
 def test_set_point_steps_do_not_hide_the_events() -> None:
     """A window the set-point check refuses still shows its stick-slip events."""
     steps = tuple((t, 50.0 + 3.0 * (i % 2)) for i, t in enumerate(range(600, 7000, 900)))
