@@ -108,6 +108,7 @@ from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
     WindowParams,
     WindowReport,
+    automatic_stretch,
     check_window,
     fill_short_gaps,
 )
@@ -315,6 +316,12 @@ def _standard(
             pv, op = pv[k:], op[k:]
             sp = None if sp_a is None else sp_a[k:]
             auto = None if auto_a is None else auto_a[k:]
+    part = automatic_stretch(pv, op, auto, p.window)
+    if part is not None:
+        a, b = part.start, part.stop
+        pv, op = pv[a:b], op[a:b]
+        sp = None if sp is None else np.asarray(sp, dtype=np.float64)[a:b]
+        auto = None if auto is None else np.asarray(auto, dtype=bool)[a:b]
     win = check_window(pv, op, sp, auto, p.window)
     diag = DiagnosisDraft(
         loop_type=loop_type,
@@ -326,6 +333,13 @@ def _standard(
         oscillating=False,
         notes=list(win.notes),
     )
+    if part is not None:
+        diag.notes.insert(
+            0,
+            f"{100 * part.manual_share:.1f} % of the window in manual: judged on its longest "
+            f"automatic stretch, {part.start * ts:.0f}-{part.stop * ts:.0f} s "
+            f"({(part.stop - part.start) * ts:.0f} s)",
+        )
     if change is not None:
         diag.notes.insert(0, change_note(change, ts, pv.size))
         diag.controller_change = change_json(change, ts)

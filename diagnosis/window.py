@@ -323,6 +323,40 @@ def _moving_noise(x: FloatArray, least: int) -> float:
     return sigma_from_second_differences(dd)
 
 
+@dataclass(frozen=True)
+class AutomaticStretch:
+    """The part of a window to judge alone: samples [start, stop), the loop in automatic
+    throughout, and the share of the window in manual around it."""
+
+    start: int
+    stop: int
+    manual_share: float
+
+
+def automatic_stretch(
+    pv: FloatArray, op: FloatArray, auto: BoolArray | None = None, p: WindowParams | None = None
+) -> AutomaticStretch | None:
+    """The longest automatic stretch of a window whose manual time (flagged by ``auto``, or
+    read from a held OP: ``held_output``) passes the ``max_missing_fraction`` a window may
+    bridge while the loop is in automatic for at least ``min_auto_fraction`` of it (methods
+    §1 judges such a window): judged alone, as the time after a controller change is. None
+    where the window is judged whole or refused: less manual time, more, or no automatic
+    stretch of ``min_segment_samples``."""
+    p = p or WindowParams()
+    manual = held_output(op, pv, p)
+    if auto is not None:
+        manual |= ~np.asarray(auto, dtype=bool)
+    share = float(np.mean(manual))
+    if share <= p.max_missing_fraction or 1.0 - share < p.min_auto_fraction:
+        return None
+    starts, stops = _runs(~manual)
+    k = int(np.argmax(stops - starts))
+    a, b = int(starts[k]), int(stops[k])
+    if b - a < max(p.min_samples, p.min_segment_samples):
+        return None
+    return AutomaticStretch(a, b, share)
+
+
 def _held(w: _Window, p: WindowParams) -> WindowReport | None:
     """An unflagged manual stretch (``held_output``) is left out as the mode flag's would be."""
     held = held_output(w.op, w.pv, p)

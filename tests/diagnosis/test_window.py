@@ -50,6 +50,18 @@ def test_manual_time_past_what_a_window_bridges_reads_manual_mode_not_missing_da
     assert check_window(PV, OP, auto=auto).verdict is None
 
 
+def test_a_window_90_percent_in_automatic_is_judged_on_its_longest_automatic_stretch() -> None:
+    """Methods §1 judges a window in automatic for 90 % of it; past the 5 % a window may
+    bridge, the chain judges its longest automatic stretch alone (times from its start)."""
+    auto = np.ones(N, dtype=bool)
+    auto[700:860] = False  # 8 % in manual
+    d = diagnose(PV, OP, 2.0, auto=auto)
+    assert d.cause != "manual_mode" and d.samples == N - 860
+    assert "judged on its longest automatic stretch, 1720-4000 s (2280 s)" in d.notes[0]
+    auto[100:300] = False  # 18 % in manual
+    assert diagnose(PV, OP, 2.0, auto=auto).cause == "manual_mode"
+
+
 def test_an_output_held_still_under_a_live_pv_reads_as_manual_without_the_mode_flag() -> None:
     """No controller in automatic holds OP bit for bit while PV moves: an operator did
     (issue 46 item 1); a hold to the window's end, a quantised OP or a clamp are not that."""
@@ -58,7 +70,13 @@ def test_an_output_held_still_under_a_live_pv_reads_as_manual_without_the_mode_f
     rep = check_window(PV, op)
     assert rep.verdict == "manual_mode", rep.notes
     assert any("OP held exactly still on 8.0 %" in n for n in rep.notes), rep.notes
-    assert diagnose(PV, op, 1.0).cause == "manual_mode"
+    # the chain judges the longest automatic stretch of a window 90 % in automatic
+    d = diagnose(PV, op, 1.0)
+    assert d.cause != "manual_mode" and d.samples == N - 1060, d.notes
+    assert d.notes[0].startswith("8.0 % of the window in manual: judged on its longest"), d.notes
+    longer = op.copy()
+    longer[100:400] = longer[100]  # 23 % in manual: less than methods §1's 90 % in automatic
+    assert diagnose(PV, longer, 1.0).cause == "manual_mode"
     op[1000:1060] = OP[1000:1060]  # 5 % held: bridged and judged, with the note
     rep = check_window(PV, op)
     assert rep.verdict is None and rep.indices["held_output_fraction"] == 0.05, rep.notes
