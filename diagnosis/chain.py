@@ -111,6 +111,7 @@ from plantcheck.diagnosis.window import (
     automatic_stretch,
     check_window,
     fill_short_gaps,
+    held_output,
 )
 
 if TYPE_CHECKING:
@@ -306,17 +307,20 @@ def _standard(
     p = params or default_chain_params()
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
+    auto = None if auto is None else np.asarray(auto, dtype=bool)
+    held = held_output(op, pv, p.window)
+    if held.any():  # manual time the record does not flag: every step below is told of it
+        auto = ~held if auto is None else auto & ~held
     change = None
     if p.controller_change is not None:
         sp_a = None if sp is None else np.asarray(sp, dtype=np.float64)
-        auto_a = None if auto is None else np.asarray(auto, dtype=bool)
-        change = latest_controller_change(pv, op, sp_a, ts, auto_a, p.controller_change)
+        change = latest_controller_change(pv, op, sp_a, ts, auto, p.controller_change)
         if change is not None:
             k = change.at
             pv, op = pv[k:], op[k:]
             sp = None if sp_a is None else sp_a[k:]
-            auto = None if auto_a is None else auto_a[k:]
-    part = automatic_stretch(pv, op, auto, p.window)
+            auto = None if auto is None else auto[k:]
+    part = automatic_stretch(auto, p.window)
     if part is not None:
         a, b = part.start, part.stop
         pv, op = pv[a:b], op[a:b]

@@ -334,18 +334,18 @@ class AutomaticStretch:
 
 
 def automatic_stretch(
-    pv: FloatArray, op: FloatArray, auto: BoolArray | None = None, p: WindowParams | None = None
+    auto: BoolArray | None, p: WindowParams | None = None
 ) -> AutomaticStretch | None:
-    """The longest automatic stretch of a window whose manual time (flagged by ``auto``, or
-    read from a held OP: ``held_output``) passes the ``max_missing_fraction`` a window may
-    bridge while the loop is in automatic for at least ``min_auto_fraction`` of it (methods
-    §1 judges such a window): judged alone, as the time after a controller change is. None
-    where the window is judged whole or refused: less manual time, more, or no automatic
-    stretch of ``min_segment_samples``."""
+    """The longest automatic stretch of a window whose manual time (False in ``auto``: the
+    mode flag's, with what ``held_output`` reads from a held OP) passes the
+    ``max_missing_fraction`` a window may bridge while the loop is in automatic for at least
+    ``min_auto_fraction`` of it (methods §1 judges such a window): judged alone, as the time
+    after a controller change is. None where the window is judged whole or refused: less
+    manual time, more, or no automatic stretch of ``min_segment_samples``."""
     p = p or WindowParams()
-    manual = held_output(op, pv, p)
-    if auto is not None:
-        manual |= ~np.asarray(auto, dtype=bool)
+    if auto is None:
+        return None
+    manual = ~np.asarray(auto, dtype=bool)
     share = float(np.mean(manual))
     if share <= p.max_missing_fraction or 1.0 - share < p.min_auto_fraction:
         return None
