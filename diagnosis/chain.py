@@ -321,11 +321,10 @@ def _standard(
             sp = None if sp_a is None else sp_a[k:]
             auto = None if auto is None else auto[k:]
     part = automatic_stretch(auto, p.window)
-    if part is not None:
+    if part is not None and auto is not None:
         a, b = part.start, part.stop
-        pv, op = pv[a:b], op[a:b]
+        pv, op, auto = pv[a:b], op[a:b], auto[a:b]
         sp = None if sp is None else np.asarray(sp, dtype=np.float64)[a:b]
-        auto = None if auto is None else np.asarray(auto, dtype=bool)[a:b]
     win = check_window(pv, op, sp, auto, p.window)
     diag = DiagnosisDraft(
         loop_type=loop_type,
@@ -338,10 +337,12 @@ def _standard(
         notes=list(win.notes),
     )
     if part is not None:
+        # where no mode tag said so, the note says how the manual time was read
+        read = " (OP held exactly still while PV kept moving)" if held.any() else ""
         diag.notes.insert(
             0,
-            f"{100 * part.manual_share:.1f} % of the window in manual: judged on its longest "
-            f"automatic stretch, {part.start * ts:.0f}-{part.stop * ts:.0f} s "
+            f"{100 * part.manual_share:.1f} % of the window in manual{read}: judged on its "
+            f"longest automatic stretch, {part.start * ts:.0f}-{part.stop * ts:.0f} s "
             f"({(part.stop - part.start) * ts:.0f} s)",
         )
     if change is not None:

@@ -830,9 +830,11 @@ def detect_stick_slip(
     op_noise:
         OP's noise σ, % (``signal_tools.noise_sigma(op)``), where the caller has it.
     bridged:
-        Samples the window checks filled in (missing, or left out in manual): an event whose
-        stuck phase or slip touches them is read off the straight line drawn across them and
-        the controller catching up after it, not off a valve, and is not counted.
+        Samples of the gaps the window checks drew a straight line across
+        (``WindowReport.bridged``: longer than they forward-fill; missing, or left out in
+        manual or as a frozen transmitter): an event whose stuck phase or slip touches them is
+        read off that line and the controller catching up after it, not off a valve, and is
+        not counted.
 
     Events come back as sample indices (any sample time: every threshold is in samples or
     noise multiples). A *strong* event is one the two-model test confirms (slow or fast loop);

@@ -83,7 +83,8 @@ class WindowParams:
     of seed 202: 12-13 samples) [R]."""
     frozen_op_noise: float = 0.1
     """A PV held bit for bit while OP's noise σ stays under this share of its noise σ over the
-    window (OP on the straight line of a constant error) is a frozen transmitter [R]."""
+    rest of the window (both read on the steps where OP moves: OP on the straight line of a
+    constant error) is a frozen transmitter [R]."""
     held_rest_moving: float = 0.5
     """... and only where OP changes on at least this share of the other sample steps: a
     quantised or step-hold compressed OP holds everywhere [R]."""
@@ -286,9 +287,10 @@ def frozen_pv(pv: FloatArray, op: FloatArray, p: WindowParams | None = None) -> 
     The controller sees the frozen value too, so its error is constant and a PI law's output
     ramps on a straight line, the integral of a constant, without the measurement noise it
     carries elsewhere: OP's noise σ over the run under ``frozen_op_noise`` × its noise σ over
-    the window. A live PV that only the historian holds (quantised, compressed, an
-    interpolating export's tail) leaves the controller's OP as noisy as anywhere, and a
-    sticky valve's stuck phase likewise (the controller sees the live PV): neither is read.
+    the rest of the window, both on the steps where OP moves (``_moving_noise``). A live PV
+    that only the historian holds (quantised, compressed, an interpolating export's tail)
+    leaves the controller's OP as noisy as anywhere, and a sticky valve's stuck phase likewise
+    (the controller sees the live PV): neither is read.
     Runs of at least ``frozen_min_samples`` samples, at most ``max_held_runs`` of them, OP
     moving within each; an OP record that runs on straight lines outside them too (an
     interpolating export: corpus windows of seed 202 held PV and OP straight together in 11

@@ -73,7 +73,9 @@ def test_an_output_held_still_under_a_live_pv_reads_as_manual_without_the_mode_f
     # the chain judges the longest automatic stretch of a window 90 % in automatic
     d = diagnose(PV, op, 1.0)
     assert d.cause != "manual_mode" and d.samples == N - 1060, d.notes
-    assert d.notes[0].startswith("8.0 % of the window in manual: judged on its longest"), d.notes
+    assert d.notes[0].startswith(
+        "8.0 % of the window in manual (OP held exactly still while PV kept moving): judged"
+    ), d.notes
     longer = op.copy()
     longer[100:400] = longer[100]  # 23 % in manual: less than methods §1's 90 % in automatic
     assert diagnose(PV, longer, 1.0).cause == "manual_mode"
