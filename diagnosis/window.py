@@ -320,6 +320,7 @@ def _moving_noise(x: FloatArray, least: int) -> float:
     noiseless, only still. NaN with fewer than ``least`` such steps (nothing to read)."""
     d = np.diff(x)
     dd = np.diff(d)[(d[:-1] != 0.0) & (d[1:] != 0.0)]
+    dd = dd[np.isfinite(dd)]  # a gap in OP leaves the rest to read
     if dd.size < max(least, 1):
         return float("nan")
     return sigma_from_second_differences(dd)
