@@ -199,19 +199,25 @@ def _length(w: _Window, p: WindowParams) -> WindowReport | None:
     return w.stop("insufficient_data")
 
 
+def _long_runs(steps: BoolArray, span: int, min_samples: int) -> list[tuple[int, int]]:
+    """[start, stop) samples of each run of True in ``steps`` (entry k of a ``span``-th
+    difference spans samples k to k + ``span``) that covers at least ``min_samples`` samples."""
+    starts, stops = _runs(steps)
+    return [
+        (a, b + span)
+        for a, b in zip(starts.tolist(), stops.tolist(), strict=True)
+        if b + span - a >= min_samples
+    ]
+
+
 def _exact_holds(x: FloatArray, min_samples: int, to_end: bool = False) -> list[tuple[int, int]]:
     """[start, stop) of each run of at least ``min_samples`` samples that repeat one value bit
     for bit (NaN never holds); one that runs to the window's last sample only if ``to_end``."""
     still = np.diff(x) == 0.0
     if int(np.count_nonzero(still)) < min_samples - 1:
         return []  # no run long enough: most windows stop here
-    starts, stops = _runs(still)  # step k joins samples k and k + 1
     n = int(x.size)
-    return [
-        (a, b + 1)
-        for a, b in zip(starts.tolist(), stops.tolist(), strict=True)
-        if b + 1 - a >= min_samples and (to_end or b + 1 < n)
-    ]
+    return [(a, b) for a, b in _long_runs(still, 1, min_samples) if to_end or b < n]
 
 
 def _mask(n: int, runs: list[tuple[int, int]]) -> BoolArray:
@@ -271,12 +277,7 @@ def _straight_runs(x: FloatArray, min_samples: int) -> BoolArray:
     d = np.diff(x)
     # on a line and moving: an output resting at a clamp is constant, not a drawn line
     flat = (np.abs(np.diff(d)) <= 1e-9 * np.maximum(1.0, np.abs(x[1:-1]))) & (d[1:] != 0.0)
-    starts, stops = _runs(flat)  # second difference k spans samples k to k + 2
-    mask = np.zeros(n, dtype=bool)
-    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
-        if b + 2 - a >= min_samples:
-            mask[a : b + 2] = True
-    return mask
+    return _mask(n, _long_runs(flat, 2, min_samples))
 
 
 def frozen_pv(pv: FloatArray, op: FloatArray, p: WindowParams | None = None) -> BoolArray:
@@ -451,10 +452,8 @@ def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
     w.pv, gap_pv = fill_short_gaps(np.asarray(w.pv, dtype=np.float64), p.max_fill_gap)
     w.op, gap_op = fill_short_gaps(np.asarray(w.op, dtype=np.float64), p.max_fill_gap)
     if miss_frac > 0:
-        starts, stops = _runs(missing)
-        long = [(a, b) for a, b in zip(starts.tolist(), stops.tolist(), strict=True)
-                if b - a > p.max_fill_gap]  # fmt: skip
         # a forward-filled sample or three draws nothing; a longer gap is a straight line
+        long = _long_runs(missing, 0, p.max_fill_gap + 1)
         w.bridged = _mask(w.n, long) if long else None
         w.notes.append(
             f"{int(missing.sum())} missing samples filled (longest gap {max(gap_pv, gap_op)})"
