@@ -181,8 +181,6 @@ class _Window:
     """Noise σ of SP − PV, from the output stage on."""
     bridged: BoolArray | None = None
     """Samples the gap stage filled in (``WindowReport.bridged``)."""
-    frozen: int = 0
-    """Samples left out where the transmitter froze (``frozen_pv``)."""
 
     def stop(self, verdict: str, segment: tuple[int, int] | None = None) -> WindowReport:
         """The report of a window refused with ``verdict``."""
@@ -382,10 +380,9 @@ def _frozen(w: _Window, p: WindowParams) -> WindowReport | None:
     frozen = frozen_pv(w.pv, w.op, p)
     if not frozen.any():
         return None
-    w.frozen = int(frozen.sum())
-    w.indices["frozen_pv_fraction"] = w.frozen / w.n
+    share = w.indices["frozen_pv_fraction"] = int(frozen.sum()) / w.n
     w.notes.append(
-        f"PV repeated its value bit for bit on {100 * w.frozen / w.n:.1f} % of the window while "
+        f"PV repeated its value bit for bit on {100 * share:.1f} % of the window while "
         "OP ramped on a straight line (the controller saw a constant error): the transmitter "
         "froze there or the DCS held a failed measurement's last value; left out as missing "
         "(check the transmitter's live reading)"
@@ -442,7 +439,8 @@ def _gaps(w: _Window, p: WindowParams) -> WindowReport | None:
                 "with less manual time"
             )
             return w.stop("manual_mode")
-        frozen = f", the transmitter frozen on {100 * w.frozen / w.n:.1f} %" if w.frozen else ""
+        share = w.indices.get("frozen_pv_fraction")
+        frozen = f", the transmitter frozen on {100 * share:.1f} %" if share else ""
         w.notes.append(
             f"{100 * miss_frac:.1f} % of samples missing{frozen} "
             f"(limit {100 * p.max_missing_fraction:.0f} %)"
