@@ -29,6 +29,7 @@ from plantcheck.diagnosis.cause_model import (
 )
 from plantcheck.diagnosis.cause_split import SplitParams, SplitResult, split_cause
 from plantcheck.diagnosis.controller_change import (
+    ControllerChange,
     ControllerChangeParams,
     change_json,
     change_note,
@@ -106,6 +107,7 @@ from plantcheck.diagnosis.tuning import (
 from plantcheck.diagnosis.tuning_proposal import TuningSettings, tuning_for, valve_first
 from plantcheck.diagnosis.valve_kpis import ValveParams, classify_valve
 from plantcheck.diagnosis.window import (
+    AutomaticStretch,
     WindowParams,
     WindowReport,
     automatic_stretch,
@@ -263,6 +265,61 @@ class _Stretch:
     """The oscillation was found in OP, not in the control error."""
 
 
+@dataclass(frozen=True)
+class _Prepared:
+    """The samples the chain judges, as ``_prepare`` cut them, and what it read to cut them."""
+
+    pv: FloatArray
+    op: FloatArray
+    sp: FloatArray | None
+    auto: BoolArray | None
+    """The mode flag's automatic samples less those ``held_output`` read as manual."""
+    held: bool
+    """Some manual time was read from an OP held still (no mode tag said so)."""
+    change: ControllerChange | None
+    """The last retuning in the window, the samples before it cut off."""
+    part: AutomaticStretch | None
+    """The automatic stretch judged alone, the manual time around it cut off."""
+
+
+def _prepare(
+    pv: FloatArray,
+    op: FloatArray,
+    sp: FloatArray | None,
+    auto: BoolArray | None,
+    ts: float,
+    p: ChainParams,
+) -> _Prepared:
+    """What the chain judges of a window, before its checks: the manual time a held OP
+    shows joined to the mode flag's, then the samples after the last retuning, then the
+    longest automatic stretch where the window is mostly in automatic (``automatic_stretch``).
+    The fit's entry points (``chain_evidence``, ``chain_shape_input``) do not call it yet:
+    their evidence is the shipped model's (``EVIDENCE_VERSION``), and the next refit should
+    read it through this step, so that the model is fitted on the samples a diagnosis weighs
+    (1 corpus window in 300 of seed 505 has a retuning found in it)."""
+    pv = np.asarray(pv, dtype=np.float64)
+    op = np.asarray(op, dtype=np.float64)
+    auto = None if auto is None else np.asarray(auto, dtype=bool)
+    held = held_output(op, pv, p.window)
+    if held.any():  # manual time the record does not flag: every step below is told of it
+        auto = ~held if auto is None else auto & ~held
+    change = None
+    if p.controller_change is not None:
+        sp_a = None if sp is None else np.asarray(sp, dtype=np.float64)
+        change = latest_controller_change(pv, op, sp_a, ts, auto, p.controller_change)
+        if change is not None:
+            k = change.at
+            pv, op = pv[k:], op[k:]
+            sp = None if sp_a is None else sp_a[k:]
+            auto = None if auto is None else auto[k:]
+    part = automatic_stretch(auto, p.window)
+    if part is not None and auto is not None:
+        a, b = part.start, part.stop
+        pv, op, auto = pv[a:b], op[a:b], auto[a:b]
+        sp = None if sp is None else np.asarray(sp, dtype=np.float64)[a:b]
+    return _Prepared(pv, op, sp, auto, bool(held.any()), change, part)
+
+
 def _standard(
     pv: FloatArray,
     op: FloatArray,
@@ -305,26 +362,9 @@ def _standard(
     if loop_type not in LOOP_TYPES:
         raise ValueError(f"loop_type must be one of {', '.join(LOOP_TYPES)}, not {loop_type!r}")
     p = params or default_chain_params()
-    pv = np.asarray(pv, dtype=np.float64)
-    op = np.asarray(op, dtype=np.float64)
-    auto = None if auto is None else np.asarray(auto, dtype=bool)
-    held = held_output(op, pv, p.window)
-    if held.any():  # manual time the record does not flag: every step below is told of it
-        auto = ~held if auto is None else auto & ~held
-    change = None
-    if p.controller_change is not None:
-        sp_a = None if sp is None else np.asarray(sp, dtype=np.float64)
-        change = latest_controller_change(pv, op, sp_a, ts, auto, p.controller_change)
-        if change is not None:
-            k = change.at
-            pv, op = pv[k:], op[k:]
-            sp = None if sp_a is None else sp_a[k:]
-            auto = None if auto is None else auto[k:]
-    part = automatic_stretch(auto, p.window)
-    if part is not None and auto is not None:
-        a, b = part.start, part.stop
-        pv, op, auto = pv[a:b], op[a:b], auto[a:b]
-        sp = None if sp is None else np.asarray(sp, dtype=np.float64)[a:b]
+    prep = _prepare(pv, op, sp, auto, ts, p)
+    pv, op, sp, auto = prep.pv, prep.op, prep.sp, prep.auto
+    change, part = prep.change, prep.part
     win = check_window(pv, op, sp, auto, p.window)
     diag = DiagnosisDraft(
         loop_type=loop_type,
@@ -338,7 +378,7 @@ def _standard(
     )
     if part is not None:
         # where no mode tag said so, the note says how the manual time was read
-        read = " (OP held exactly still while PV kept moving)" if held.any() else ""
+        read = " (OP held exactly still while PV kept moving)" if prep.held else ""
         diag.notes.insert(
             0,
             f"{100 * part.manual_share:.1f} % of the window in manual{read}: judged on its "
