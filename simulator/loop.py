@@ -372,6 +372,22 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     return loop_record(cfg, rng, t, sp, pv, op, mv)
 
 
+def simulate_retuned_loop(cfg: LoopConfig, at: int, kc: float, ti_s: float) -> LoopRecord:
+    """``simulate_loop(cfg)`` with the PI settings ``kc`` and ``ti_s`` (s) typed in from
+    sample ``at`` of the record on (after warm-up; ``ClosedLoop.set_controller``: the integral
+    state carries OP over, as a DCS does): a retuning inside the window."""
+    rng, t, sp, load, out_d, noise = loop_inputs(cfg)
+    loop = ClosedLoop(cfg)
+    cut = min(max(cfg.warmup_samples + at, 0), t.size)
+    first = loop.run(sp[:cut].tolist(), load[:cut].tolist(), out_d[:cut].tolist(),
+                     noise[:cut].tolist())  # fmt: skip
+    loop.set_controller(kc, ti_s)
+    rest = loop.run(sp[cut:].tolist(), load[cut:].tolist(), out_d[cut:].tolist(),
+                    noise[cut:].tolist())  # fmt: skip
+    pv, op, mv = (np.array(a + b, dtype=np.float64) for a, b in zip(first, rest, strict=True))
+    return loop_record(cfg, rng, t, sp, pv, op, mv)
+
+
 LoopInputs = tuple[np.random.Generator, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
 """What a run is driven by: the run's generator (its later draws make the stem sensor's noise),
 time (s), set point, load, output disturbance and measurement noise, one value per sample."""
