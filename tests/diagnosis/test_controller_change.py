@@ -12,9 +12,12 @@ from numpy.typing import NDArray
 
 from plantcheck.diagnosis import diagnose
 from plantcheck.diagnosis.controller_change import (
+    ControllerChangeParams,
     find_controller_change,
     latest_controller_change,
 )
+from plantcheck.simulator.corpus import draw_case
+from plantcheck.simulator.loop import simulate_retuned_loop
 from plantcheck.simulator.plant import Plant
 from plantcheck.simulator.scenario import LoopSpec, Scenario, load_scenario
 
@@ -93,6 +96,26 @@ def test_one_controller_throughout_is_never_cut() -> None:
         assert found is None, (spec.id, found)
         # without the mode: the manual stretch's OP is no PI of the error
         assert find_controller_change(w[:, i, 1], w[:, i, 2], w[:, i, 0], 1.0) is None, spec.id
+
+
+@pytest.mark.parametrize("index", [483, 691])
+def test_a_historians_recording_error_is_no_retuning(index: int) -> None:
+    """Corpus loops recorded by a historian (483: compressed, 691: quantised), each with a
+    set-point move after a quiet stretch: the recording error biases the quiet side's
+    settings (errors in variables), and the search once read a retuning there. The rows
+    averaged over ``confirm_block`` samples do not confirm it; the same loop retuned at its
+    middle (Kc halved) is still found to the sample."""
+    case, rec = draw_case(202, index)
+    cfg = case.config
+    ts, c = cfg.sample_time_s, cfg.controller
+    assert case.family["recording"] in ("compressed", "quantised")
+    assert latest_controller_change(rec.pv, rec.op, rec.sp, ts) is None
+    unconfirmed = ControllerChangeParams(confirm_block=1)
+    assert latest_controller_change(rec.pv, rec.op, rec.sp, ts, params=unconfirmed) is not None
+    made = cfg.n_samples // 2
+    retuned = simulate_retuned_loop(cfg, made, c.Kc * 0.5, c.Ti_s)
+    change = latest_controller_change(retuned.pv, retuned.op, retuned.sp, ts)
+    assert change is not None and abs(change.at - made) <= 2, change
 
 
 def test_short_or_empty_windows_are_left_whole() -> None:
