@@ -296,10 +296,10 @@ def _prepare(
     The fit's entry points (``chain_evidence``, ``chain_shape_input``) do not call it yet:
     their evidence is the shipped model's (``EVIDENCE_VERSION``), and the next refit should
     read it through this step (raising the version), so that the model is fitted on the
-    samples a diagnosis weighs. Read through it, the evidence of none of 8,000 corpus windows
-    (seeds 202-505) changes since the controller-change search reads no retuning the
-    simulation never made (the fifty-third session; before it, 13 of the 4,000 of seeds 202
-    and 303 were cut)."""
+    samples a diagnosis weighs. Read through it, the evidence of 13 of the 272,000 windows
+    the fit reads would change (fifty-third session: a retuning the simulation never made,
+    read on quantised or compressed records, 12 of them beside a clamp); before that
+    session's controller-change confirmation, 13 of the 4,000 of seeds 202 and 303 alone."""
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
     auto = None if auto is None else np.asarray(auto, dtype=bool)
