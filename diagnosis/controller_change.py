@@ -25,7 +25,8 @@ the recording error down and leaves a true change of the law as it was (on the c
 ``benchmarks/controller_change_accuracy.py``, 6,375 windows of five seeds: 23 changes found
 where nobody retuned to none; of the retunings made, 2,710 found before and 2,655 after).
 Rows where OP's record runs on a drawn straight line are left out as clamped ones are: an
-interpolating export's segment between two stored values is the export's, not the law's.
+interpolating export's segment between two stored values is the export's, not the law's
+(with both, 2,671 of the retunings made are found).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from plantcheck.diagnosis.signal_tools import FloatArray, sorted_unique
+from plantcheck.diagnosis.signal_tools import FloatArray, drawn_line_steps, sorted_unique
 from plantcheck.diagnosis.tuning import pi_settings
 
 
@@ -145,11 +146,10 @@ def _rows(
     # not the PI law's: those moves are left out
     with np.errstate(invalid="ignore"):
         clamped = (op <= np.nanmin(op) + 1e-9) | (op >= np.nanmax(op) - 1e-9)
-        # ΔOP on a drawn straight line (second difference zero to rounding, OP moving) is an
-        # interpolating export's segment between two stored values, not the PI law's move
-        drawn = (np.abs(np.diff(y)) <= 1e-9 * np.maximum(1.0, np.abs(op[1:-1]))) & (y[1:] != 0.0)
     ok &= ~(clamped[1:] | clamped[:-1])
-    ok[1:] &= ~drawn
+    # ΔOP on a line an interpolating export drew between two stored values is the export's
+    # segment, not the PI law's move
+    ok[1:] &= ~drawn_line_steps(op)
     x = np.where(ok, np.stack([e[1:], e[:-1], np.ones(n - 1)]), 0.0)
     return x, np.where(ok, y, 0.0), ok
 

@@ -221,6 +221,20 @@ def noise_sigma(x: FloatArray) -> float:
     return sigma_from_second_differences(np.diff(x, 2))
 
 
+def drawn_line_steps(x: FloatArray) -> BoolArray:
+    """Per second-difference step k (samples k to k + 2): ``x`` runs there on one sloping
+    straight line, its second difference zero to float rounding and its first not zero. No
+    recorded measurement or controller output is that smooth; an interpolating export's
+    segment between two stored values is (a value resting at a clamp is constant, not
+    drawn). NaN is never on a line."""
+    d = np.diff(x)
+    with np.errstate(invalid="ignore"):
+        return np.asarray(
+            (np.abs(np.diff(d)) <= 1e-9 * np.maximum(1.0, np.abs(x[1:-1]))) & (d[1:] != 0.0),
+            dtype=bool,
+        )
+
+
 def sigma_from_second_differences(d2: FloatArray) -> float:
     """``noise_sigma`` from second differences already taken (some of them, say where the
     signal moves): their median absolute deviation over √6, robust to a few large ones."""

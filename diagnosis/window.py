@@ -19,6 +19,7 @@ from plantcheck.diagnosis.signal_tools import (
     BoolArray,
     FloatArray,
     distinct_count,
+    drawn_line_steps,
     moving_average,
     noise_sigma,
     sigma_from_second_differences,
@@ -272,10 +273,7 @@ def _straight_runs(x: FloatArray, min_samples: int) -> BoolArray:
     n = int(x.size)
     if n < 3:
         return np.zeros(n, dtype=bool)
-    d = np.diff(x)
-    # on a line and moving: an output resting at a clamp is constant, not a drawn line
-    flat = (np.abs(np.diff(d)) <= 1e-9 * np.maximum(1.0, np.abs(x[1:-1]))) & (d[1:] != 0.0)
-    return _mask(n, _long_runs(flat, 2, min_samples))
+    return _mask(n, _long_runs(drawn_line_steps(x), 2, min_samples))
 
 
 def frozen_pv(pv: FloatArray, op: FloatArray, p: WindowParams | None = None) -> BoolArray:
