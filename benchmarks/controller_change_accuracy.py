@@ -36,8 +36,8 @@ import numpy as np
 
 from plantcheck.diagnosis.chain import default_chain_params
 from plantcheck.diagnosis.controller_change import latest_controller_change
-from plantcheck.simulator.corpus import CorpusCase, draw_case
-from plantcheck.simulator.loop import simulate_loop, simulate_retuned_loop
+from plantcheck.simulator.corpus import draw_case
+from plantcheck.simulator.loop import simulate_retuned_loop
 
 MIN_SAMPLES = 1000
 """Windows shorter than this are left out: the search wants 200 samples a side, and a
@@ -68,8 +68,7 @@ class Row:
 
 def one_window(args: tuple[int, int]) -> Row | None:
     seed, index = args
-    case: CorpusCase
-    case, _ = draw_case(seed, index)
+    case, drawn = draw_case(seed, index)
     cfg = case.config
     n = cfg.n_samples
     if n < MIN_SAMPLES:
@@ -81,7 +80,7 @@ def one_window(args: tuple[int, int]) -> Row | None:
     found: list[int | None] = []
     c = cfg.controller
     retuned = (c.Kc * factors[0], c.Ti_s * factors[1])
-    for rec in (simulate_loop(cfg), simulate_retuned_loop(cfg, made, *retuned)):
+    for rec in (drawn, simulate_retuned_loop(cfg, made, *retuned)):
         change = latest_controller_change(rec.pv, rec.op, rec.sp, ts, None, p)
         found.append(None if change is None else change.at)
     return Row(index, case.cause, case.family, n, found[0], found[1], made)
