@@ -70,13 +70,29 @@ class Disturbance:
     """Load (process input) and output disturbances.
 
     ``sine_amplitude`` (% of span at the output, or % of travel at the load) with period
-    ``sine_period_s``; ``random_walk_std`` per sqrt(second); ``steps``: (time_s, size) pairs;
-    ``filtered_noise_std`` with time constant ``filtered_noise_tau_s``.
+    ``sine_period_s``, its waveform ``shape``; ``random_walk_std`` per sqrt(second); ``steps``:
+    (time_s, size) pairs; ``filtered_noise_std`` with time constant ``filtered_noise_tau_s``.
     """
 
     where: Literal["load", "output"] = "load"
     sine_amplitude: float = 0.0
     sine_period_s: float = 100.0
+    shape: Literal["sine", "square", "triangle"] = "sine"
+    """The periodic load's waveform, of peak ``sine_amplitude`` about its mean: ``square``, a
+    sticky valve or an on/off unit upstream jumping between two positions (high for ``duty``
+    of each period); ``triangle``, a level or an integral action upstream ramping between
+    them (rising for ``duty`` of each period); each through a first-order lag of
+    ``edge_lag_s``, the process between. A plant's periodic loads are more often another
+    loop's limit cycle than a sine (Thornhill & Horch 2007)."""
+    duty: float = 0.5
+    edge_lag_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.duty < 1.0:
+            raise ValueError(f"duty: {self.duty}; give the share of a period, between 0 and 1")
+        if self.edge_lag_s < 0.0:
+            raise ValueError(f"edge_lag_s: {self.edge_lag_s}; give a lag of 0 s or more")
+
     random_walk_std: float = 0.0
     filtered_noise_std: float = 0.0
     filtered_noise_tau_s: float = 20.0
@@ -168,7 +184,10 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
     out = np.zeros_like(t)
     if d.sine_amplitude:
         phase = rng.uniform(0, 2 * math.pi)
-        out += d.sine_amplitude * np.sin(2 * math.pi * t / d.sine_period_s + phase)
+        if d.shape == "sine":
+            out += d.sine_amplitude * np.sin(2 * math.pi * t / d.sine_period_s + phase)
+        else:
+            out += d.sine_amplitude * _limit_cycle(d, t, phase / (2 * math.pi))
     if d.random_walk_std:
         out += np.cumsum(rng.normal(0.0, d.random_walk_std * math.sqrt(ts), t.size))
     if d.filtered_noise_std:
@@ -191,6 +210,25 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
     for t_step, size in d.steps:
         out += np.where(t >= t_step, size, 0.0)
     return out
+
+
+def _limit_cycle(d: Disturbance, t: FloatArray, phase: float) -> FloatArray:
+    """A square or triangular wave of unit peak about its mean (``Disturbance.shape``), at
+    ``phase`` (cycles) when t = 0, through a first-order lag of ``edge_lag_s`` started at its
+    first value."""
+    at = (t / d.sine_period_s + phase) % 1.0
+    high = at < d.duty
+    if d.shape == "square":
+        wave = np.where(high, 1.0, -1.0) - (2.0 * d.duty - 1.0)
+    else:
+        wave = np.where(high, -1.0 + 2.0 * at / d.duty, 1.0 - 2.0 * (at - d.duty) / (1.0 - d.duty))
+    if d.edge_lag_s <= 0.0 or t.size < 2:
+        return np.asarray(wave, dtype=np.float64)
+    a = math.exp(-float(t[1] - t[0]) / d.edge_lag_s)
+    from scipy.signal import lfilter  # imported here, as for the filtered noise above
+
+    lagged, _ = lfilter([1.0 - a], [1.0, -a], wave, zi=[a * float(wave[0])])
+    return np.asarray(lagged, dtype=np.float64)
 
 
 def delay_samples(p: Process, ts: float) -> int:
