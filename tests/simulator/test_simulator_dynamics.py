@@ -11,7 +11,14 @@ from simhelpers import START
 
 from plantcheck.diagnosis import detect_oscillation
 from plantcheck.simulator.cases import ultimate_gain
-from plantcheck.simulator.loop import ClosedLoop, LoopConfig, PIController, Process
+from plantcheck.simulator.loop import (
+    ClosedLoop,
+    Disturbance,
+    LoopConfig,
+    PIController,
+    Process,
+    loop_inputs,
+)
 from plantcheck.simulator.plant import Plant
 from plantcheck.simulator.scenario import Scenario, load_scenario, parse_scenario
 
@@ -180,3 +187,30 @@ def test_a_valve_characteristic_changes_the_gain_away_from_the_operating_point(
     assert rec.pv[-1] == pytest.approx(70.0, abs=0.05)  # the controller still gets there
     np.testing.assert_array_equal(rec.mv, rec.op)  # MV is the stem, not the flow
     assert np.sign(round(rec.op[-1] - linear.op[-1], 3)) == more_op
+
+
+@pytest.mark.parametrize("shape", ["square", "triangle"])
+def test_a_periodic_load_can_be_another_loops_limit_cycle(shape: str) -> None:
+    """A square wave high for ``duty`` of each period, or a triangle rising for it: peak to
+    peak twice the amplitude, about zero mean, its edges through ``edge_lag_s``."""
+    wave = Disturbance(sine_amplitude=2.0, sine_period_s=100.0, shape=shape, duty=0.3)  # type: ignore[arg-type]
+    cfg = LoopConfig(disturbances=(wave,), n_samples=2000, warmup_samples=0)
+    load = loop_inputs(cfg)[3]
+    assert np.ptp(load) == pytest.approx(4.0, abs=0.1)  # a triangle's tip falls between samples
+    assert abs(float(np.mean(load))) < 0.05
+    rising = np.diff(load) > 0 if shape == "triangle" else load[1:] > np.mean(load)
+    assert float(np.mean(rising)) == pytest.approx(0.3, abs=0.015)
+    lagged = loop_inputs(replace(cfg, disturbances=(replace(wave, edge_lag_s=5.0),)))[3]
+    assert np.ptp(lagged) < np.ptp(load)
+    if shape == "square":
+        # five samples after a rising edge, 1 - 1/e of the jump is covered
+        edge = int(np.flatnonzero(np.diff(load) > 0)[1]) + 1
+        covered = (lagged[edge + 4] - lagged[edge - 1]) / 4.0
+        assert covered == pytest.approx(1.0 - np.exp(-1.0), abs=0.02)
+
+
+def test_a_limit_cycle_asks_for_a_share_of_a_period() -> None:
+    with pytest.raises(ValueError, match="duty"):
+        Disturbance(shape="square", duty=1.0)
+    with pytest.raises(ValueError, match="edge_lag_s"):
+        Disturbance(shape="square", edge_lag_s=-1.0)
