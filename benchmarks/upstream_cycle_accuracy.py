@@ -53,12 +53,15 @@ EDGE_LAG = (0.01, 0.15)
 
 def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfig:
     """``cfg`` with its periodic loads (those with a sine amplitude) replaced by one load of
-    ``shape``, the first one's period, peak and entry point; ``sine`` keeps them as drawn."""
+    ``shape``, the first one's period, peak and entry point; ``sine`` keeps drawn sines as
+    they are (with a third harmonic where drawn) and makes a drawn limit cycle a sine."""
     periodic = [d for d in cfg.disturbances if d.sine_amplitude]
     others = tuple(d for d in cfg.disturbances if not d.sine_amplitude)
-    if shape == "sine" or not periodic:
+    if not periodic or (shape == "sine" and periodic[0].shape == "sine"):
         return cfg
     first = periodic[0]
+    if shape == "sine":
+        return replace(cfg, disturbances=(replace(first, shape="sine"), *others))
     lag = first.sine_period_s * math.exp(rng.uniform(*np.log(EDGE_LAG)))
     wave = Disturbance(
         where=first.where,
