@@ -10,7 +10,7 @@ square loop's PV and OP as a sticky valve's (Horch 1999 warns of it), and neithe
 fitted on such loads.
 
 Every external-disturbance window of corpus ``--seed`` among its first ``--windows`` is
-simulated again with its periodic loads replaced by one of the same period and peak:
+simulated again with its periodic loads replaced by one of the same period and swing:
 ``sine`` (as drawn, the reference), ``square`` (high for 30-70 % of each period, edges
 through a lag of 1-15 % of the period) and ``triangle`` (rising for 30-70 %, the same lag),
 the rest of the window as drawn. A window whose control error does not rise by
@@ -53,8 +53,9 @@ EDGE_LAG = (0.01, 0.15)
 
 def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfig:
     """``cfg`` with its periodic loads (those with a sine amplitude) replaced by one load of
-    ``shape``, the first one's period, peak and entry point; ``sine`` keeps drawn sines as
-    they are (with a third harmonic where drawn) and makes a drawn limit cycle a sine."""
+    ``shape``, the first one's period, swing (trough to peak) and entry point; ``sine`` keeps
+    drawn sines as they are (a third harmonic where drawn) and makes a drawn limit cycle a
+    sine."""
     periodic = [d for d in cfg.disturbances if d.sine_amplitude]
     others = tuple(d for d in cfg.disturbances if not d.sine_amplitude)
     if not periodic or (shape == "sine" and periodic[0].shape == "sine"):
