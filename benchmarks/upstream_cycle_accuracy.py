@@ -41,7 +41,7 @@ from model_option import chosen_model
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.corpus import VISIBLY_FAULTY, CorpusCase, draw_cases, fault_and_twin
-from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
+from plantcheck.simulator.loop import Disturbance, LoopConfig, LoopRecord, simulate_loop
 
 SHAPES = ("sine", "square", "triangle")
 DECISIONS = ("rules", "learned")
@@ -76,16 +76,17 @@ def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfi
 
 
 def read_window(
-    case: CorpusCase, seed: int, params: dict[str, ChainParams]
+    case: CorpusCase, drawn: LoopRecord, seed: int, params: dict[str, ChainParams]
 ) -> dict[str, dict[str, str] | None]:
-    """Per shape, each decision's cause of the window under that load (None: hidden)."""
+    """Per shape, each decision's cause of the window under that load (None: hidden);
+    ``drawn``, the window's record as the corpus drew it, read where the load stays."""
     assert case.twin is not None
     twin = simulate_loop(case.twin)
     rng = np.random.default_rng([seed, case.index])
     out: dict[str, dict[str, str] | None] = {}
     for shape in SHAPES:
         cfg = reshaped(case.config, shape, rng)
-        rec = simulate_loop(cfg)
+        rec = drawn if cfg is case.config else simulate_loop(cfg)
         shown = fault_and_twin(replace(case, config=cfg), rec, twin)
         if shown is not None and shown[0] < VISIBLY_FAULTY * shown[1]:
             out[shape] = None
@@ -134,10 +135,10 @@ def main() -> None:
     hidden: collections.Counter[str] = collections.Counter()
     t0 = time.perf_counter()
     read = 0
-    for case, _ in draw_cases(args.seed, range(args.windows)):
+    for case, drawn in draw_cases(args.seed, range(args.windows)):
         if case.cause != "external_disturbance":
             continue
-        for shape, causes in read_window(case, args.seed, params).items():
+        for shape, causes in read_window(case, drawn, args.seed, params).items():
             if causes is None:
                 hidden[shape] += 1
                 continue
