@@ -15,7 +15,8 @@ or, where a loop never takes it, neutral constants whose result can differ from 
 only in the sign of a zero that is then added to a non-zero value.
 
 Loops with an actuator model or a non-linear flow characteristic (the served plant's, never
-the corpus') are stepped one at a time by ``simulate_loop``.
+the corpus'), or with manual or frozen-transmitter stretches, are stepped one at a time by
+``simulate_loop``.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from plantcheck.simulator.loop import (
+    BoolArray,
     FloatArray,
     LoopConfig,
     LoopRecord,
@@ -37,8 +39,6 @@ from plantcheck.simulator.loop import (
     loop_record,
     simulate_loop,
 )
-
-BoolArray = NDArray[np.bool_]
 
 STICKY_MODELS = ("kano", "he", "choudhury", "backlash")
 """The sticky valve models ``loop.make_valve`` builds (``LoopConfig.valve``)."""
@@ -72,7 +72,7 @@ def simulate_loops(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
     out: list[LoopRecord | None] = [None] * len(cfgs)
     groups: dict[bool, list[int]] = {False: [], True: []}
     for i, c in enumerate(cfgs):
-        if c.actuator is not None or c.characteristic != "linear":
+        if c.actuator is not None or c.characteristic != "linear" or c.manual or c.frozen_pv:
             out[i] = simulate_loop(c)
         else:
             groups[c.valve != "linear"].append(i)

@@ -15,6 +15,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from itertools import pairwise
 from typing import Literal
 
 import numpy as np
@@ -32,6 +33,7 @@ from plantcheck.simulator.valves import (
 )
 
 FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -146,6 +148,30 @@ class LoopConfig:
     the linear loop holds at the operating point and the gain changes away from it)."""
     rangeability: float = 30.0
     """Equal-percentage rangeability R: flow ∝ R^(x/100 - 1)."""
+    manual: tuple[tuple[float, float], ...] = ()
+    """Stretches (start, end) of the record, s from its first sample after warm-up, in which
+    an operator held the loop in manual: OP keeps its last value, the loads move PV unopposed,
+    and the controller takes over from that value at the end (``ClosedLoop.auto``). Plants switch
+    loops to manual for hours at a time, most often without a mode tag in the historian
+    (issue 46 item 1); ``manual_mask`` says which samples they cover."""
+    frozen_pv: tuple[tuple[float, float], ...] = ()
+    """Stretches (start, end), s as ``manual``, in which the transmitter froze at its last
+    reading: the controller and the record see that value, and the controller ramps OP on
+    the constant error it makes (``ClosedLoop.frozen_pv``; Thornhill & Horch 2007 name a
+    failed measurement held by the DCS among the faults that look like a loop's)."""
+
+    def __post_init__(self) -> None:
+        for name in ("manual", "frozen_pv"):
+            stretches = getattr(self, name)
+            end = 0.0
+            for start, stop in stretches:
+                if not end <= start < stop:
+                    raise ValueError(
+                        f"{name}: {stretches}; give (start, end) pairs in seconds of the "
+                        "record, each starting at 0 or later, before its end and after the "
+                        "previous one's end"
+                    )
+                end = stop
 
 
 @dataclass(frozen=True)
@@ -404,15 +430,70 @@ def recorded_pv(
 def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     """Simulate one closed loop and return the last ``n_samples`` samples after warm-up."""
     rng, t, sp, load, out_d, noise = loop_inputs(cfg)
-    runs = ClosedLoop(cfg).run(sp.tolist(), load.tolist(), out_d.tolist(), noise.tolist())
-    pv, op, mv = (np.array(v, dtype=np.float64) for v in runs)
+    if cfg.manual or cfg.frozen_pv:
+        pv, op, mv = _run_stretches(cfg, sp, load, out_d, noise)
+    else:
+        runs = ClosedLoop(cfg).run(sp.tolist(), load.tolist(), out_d.tolist(), noise.tolist())
+        pv, op, mv = (np.array(v, dtype=np.float64) for v in runs)
     return loop_record(cfg, rng, t, sp, pv, op, mv)
+
+
+def _stretch_samples(cfg: LoopConfig, stretches: tuple[tuple[float, float], ...]) -> BoolArray:
+    """Which samples of a run, warm-up included, ``stretches`` (s of the record) cover."""
+    n_total = cfg.n_samples + cfg.warmup_samples
+    k = np.arange(n_total) - cfg.warmup_samples
+    ts = cfg.sample_time_s
+    inside = np.zeros(n_total, dtype=bool)
+    for start, stop in stretches:
+        inside |= (k >= math.ceil(start / ts - 1e-9)) & (k < math.ceil(stop / ts - 1e-9))
+    return inside
+
+
+def manual_mask(cfg: LoopConfig) -> BoolArray:
+    """True on the record's samples (after warm-up) in which the loop is in manual
+    (``LoopConfig.manual``): what a historian's mode tag would say, where a plant keeps one."""
+    return _stretch_samples(cfg, cfg.manual)[cfg.warmup_samples :]
+
+
+def _run_stretches(
+    cfg: LoopConfig, sp: FloatArray, load: FloatArray, out_d: FloatArray, noise: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``ClosedLoop.run`` over the run's inputs, switching to manual and freezing the
+    transmitter at the last reading over ``cfg.manual`` and ``cfg.frozen_pv``."""
+    manual = _stretch_samples(cfg, cfg.manual)
+    frozen = _stretch_samples(cfg, cfg.frozen_pv)
+    state = manual.astype(np.int8) * 2 + frozen
+    cuts = [0, *(np.flatnonzero(np.diff(state)) + 1).tolist(), state.size]
+    loop = ClosedLoop(cfg)
+    pv: list[float] = []
+    op: list[float] = []
+    mv: list[float] = []
+    for a, b in pairwise(cuts):
+        loop.auto = not manual[a]
+        if not loop.auto and op:  # the operator takes over the last output, which ``run``
+            loop.integral = op[-1]  # holds through the integral state
+        if not frozen[a]:
+            loop.frozen_pv = None
+        elif loop.frozen_pv is None:  # frozen at the last reading (the first: the set point)
+            loop.frozen_pv = pv[-1] if pv else cfg.sp
+        part = loop.run(sp[a:b].tolist(), load[a:b].tolist(), out_d[a:b].tolist(),
+                        noise[a:b].tolist())  # fmt: skip
+        pv += part[0]
+        op += part[1]
+        mv += part[2]
+    return (np.array(pv, dtype=np.float64), np.array(op, dtype=np.float64),
+            np.array(mv, dtype=np.float64))  # fmt: skip
 
 
 def simulate_retuned_loop(cfg: LoopConfig, at: int, kc: float, ti_s: float) -> LoopRecord:
     """``simulate_loop(cfg)`` with the PI settings ``kc`` and ``ti_s`` (s) typed in from
     sample ``at`` of the record on (after warm-up; ``ClosedLoop.set_controller``: the integral
     state carries OP over, as a DCS does): a retuning inside the window."""
+    if cfg.manual or cfg.frozen_pv:
+        raise ValueError(
+            "manual, frozen_pv: a retuned run takes neither; simulate the stretches with "
+            "simulate_loop"
+        )
     rng, t, sp, load, out_d, noise = loop_inputs(cfg)
     loop = ClosedLoop(cfg)
     cut = min(max(cfg.warmup_samples + at, 0), t.size)

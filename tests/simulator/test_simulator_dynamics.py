@@ -10,6 +10,7 @@ import pytest
 from simhelpers import START
 
 from plantcheck.diagnosis import detect_oscillation
+from plantcheck.simulator.batch_loop import simulate_loops
 from plantcheck.simulator.cases import ultimate_gain
 from plantcheck.simulator.loop import (
     ClosedLoop,
@@ -18,6 +19,9 @@ from plantcheck.simulator.loop import (
     PIController,
     Process,
     loop_inputs,
+    manual_mask,
+    simulate_loop,
+    simulate_retuned_loop,
 )
 from plantcheck.simulator.plant import Plant
 from plantcheck.simulator.scenario import Scenario, load_scenario, parse_scenario
@@ -214,3 +218,60 @@ def test_a_limit_cycle_asks_for_a_share_of_a_period() -> None:
         Disturbance(shape="square", duty=1.0)
     with pytest.raises(ValueError, match="edge_lag_s"):
         Disturbance(shape="square", edge_lag_s=-1.0)
+
+
+def _stretched(**stretches: tuple[tuple[float, float], ...]) -> LoopConfig:
+    """A noisy loop under a random-walk load, sampled at 2 s, with ``stretches``."""
+    load = Disturbance(random_walk_std=0.3, steps=((300.0, 5.0),))
+    return LoopConfig(
+        process=Process(K=1.5, tau_s=40.0, theta_s=4.0),
+        controller=PIController(Kc=0.6, Ti_s=40.0),
+        disturbances=(load,),
+        noise_std=0.2,
+        sample_time_s=2.0,
+        n_samples=600,
+        warmup_samples=50,
+        seed=7,
+        **stretches,  # type: ignore[arg-type]
+    )
+
+
+def test_an_operator_holds_op_in_a_manual_stretch_and_the_load_moves_pv() -> None:
+    """Manual from 200 s to 500 s of the record: OP holds its last value for those 150
+    samples while the load step at 300 s moves PV away; the controller takes over after."""
+    cfg = _stretched(manual=((200.0, 500.0),))
+    rec = simulate_loop(cfg)
+    mask = manual_mask(cfg)
+    assert mask.size == rec.pv.size and int(mask.sum()) == 150
+    assert np.flatnonzero(mask)[[0, -1]].tolist() == [100, 249]
+    assert np.ptp(rec.op[100:250]) == 0.0 and rec.op[100] == rec.op[99]
+    assert np.ptp(rec.op[250:260]) > 0.0  # back in automatic
+    auto = simulate_loop(replace(cfg, manual=()))
+    # in automatic the controller holds PV near its set point; in manual the load drifts it
+    assert np.std(rec.pv[150:250] - 50.0) > 2.0 * np.std(auto.pv[150:250] - 50.0)
+    assert np.array_equal(rec.pv[:100], auto.pv[:100])  # the same run before the stretch
+
+
+def test_a_frozen_transmitter_holds_its_last_reading_and_the_controller_ramps_op() -> None:
+    cfg = _stretched(frozen_pv=((100.0, 300.0),))
+    rec = simulate_loop(cfg)
+    assert np.ptp(rec.pv[50:150]) == 0.0 and rec.pv[50] == rec.pv[49]
+    # a constant error: the integral action moves OP by the same amount every sample
+    assert np.ptp(np.diff(rec.op[51:150])) < 1e-9 and abs(rec.op[149] - rec.op[50]) > 0.0
+    assert np.ptp(rec.pv[150:160]) > 0.0  # live again
+
+
+def test_a_loop_with_stretches_is_the_same_alone_or_among_others() -> None:
+    plain = _stretched()
+    cfgs = [plain, _stretched(manual=((200.0, 500.0),)), replace(plain, seed=8)]
+    for alone, batched in zip((simulate_loop(c) for c in cfgs), simulate_loops(cfgs), strict=True):
+        assert np.array_equal(alone.pv, batched.pv) and np.array_equal(alone.op, batched.op)
+
+
+@pytest.mark.parametrize("field", ["manual", "frozen_pv"])
+def test_a_stretch_must_start_before_it_ends_and_after_the_last(field: str) -> None:
+    for bad in (((50.0, 10.0),), ((-1.0, 10.0),), ((0.0, 100.0), (50.0, 200.0))):
+        with pytest.raises(ValueError, match=field):
+            _stretched(**{field: bad})
+    with pytest.raises(ValueError, match="simulate_loop"):
+        simulate_retuned_loop(_stretched(**{field: ((0.0, 10.0),)}), 10, 1.0, 10.0)
