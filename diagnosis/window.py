@@ -86,6 +86,9 @@ class WindowParams:
     """A PV held bit for bit while OP's noise σ stays under this share of its noise σ over the
     rest of the window (both read on the steps where OP moves: OP on the straight line of a
     constant error) is a frozen transmitter [R]."""
+    held_pv_moving: float = 0.5
+    """An OP held under a PV that moves on at least this share of the steps it moves on
+    elsewhere (steps where OP does not hold) is an operator's; less, a stalled record [R]."""
     held_rest_moving: float = 0.5
     """... and only where OP changes on at least this share of the other sample steps: a
     quantised or step-hold compressed OP holds everywhere [R]."""
@@ -233,15 +236,17 @@ def held_output(op: FloatArray, pv: FloatArray, p: WindowParams | None = None) -
 
     A PI law in automatic moves its output with every live PV sample (the proportional action
     alone does), so an output that repeats its value bit for bit for ``min_clamp_samples`` or
-    more while PV keeps changing (on at least half of the run's steps) was not computed by the
-    controller: an operator held it (Åström & Hägglund, 2006, §3.5, bumpless transfer: OP
-    stands still in manual and the controller takes over from it). Held at the window's own
-    extreme it is a clamp, read by the output stage. Left alone where OP also holds on more
-    than ``1 - held_rest_moving`` of the other steps (a quantised or step-hold compressed OP)
-    or where more than ``max_held_runs`` runs hold (a controller with an error gap). A hold
-    that runs to the window's end is left alone too: an interpolating historian's export holds
-    the last stored value there (corpus windows of seed 202: 39 of 2,000 end so, none hold
-    inside), so only a stretch OP leaves again, the return to automatic, is read.
+    more while PV keeps changing (on at least ``held_pv_moving`` of the share of steps it
+    changes on where OP does not hold: a compressed or quantised PV changes on few anywhere)
+    was not computed by the controller: an operator held it (Åström & Hägglund, 2006, §3.5,
+    bumpless transfer: OP stands still in manual and the controller takes over from it). Held
+    at the window's own extreme it is a clamp, read by the output stage. Left alone where OP
+    also holds on more than ``1 - held_rest_moving`` of the other steps, neither held nor at a
+    clamp (a quantised or step-hold compressed OP), or where more than ``max_held_runs`` runs
+    hold (a controller with an error gap). A hold that runs to the window's end is left alone
+    too: an interpolating historian's export holds the last stored value there (corpus windows
+    of seed 202: 39 of 2,000 end so, none hold inside), so only a stretch OP leaves again, the
+    return to automatic, is read.
     OP in %; PV in engineering units.
     """
     p = p or WindowParams()
@@ -250,17 +255,25 @@ def held_output(op: FloatArray, pv: FloatArray, p: WindowParams | None = None) -
     if not holds:
         return np.zeros(n, dtype=bool)
     extremes = (float(np.nanmax(op)), float(np.nanmin(op)))  # a clamp's, read by _output
+    still = _mask(n, holds)
+    pv_moves = np.diff(pv) != 0.0
+    outside = ~(still[1:] | still[:-1])
+    # how often PV moves where OP does not hold: a compressed or quantised PV rarely does
+    moving = min(float(np.mean(pv_moves[outside])), 1.0) if outside.any() else 1.0
     runs = [
         (a, b)
         for a, b in holds
         if float(op[a]) not in extremes
         # a PV standing still too is a stalled record, not an operator
-        and float(np.mean(np.diff(pv[a:b]) != 0.0)) >= 0.5
+        and float(np.mean(pv_moves[a : b - 1])) >= max(p.held_pv_moving * moving, 1e-12)
     ]
     if not runs or len(runs) > p.max_held_runs:
         return np.zeros(n, dtype=bool)
     held = _mask(n, runs)
-    rest = ~(held[1:] | held[:-1])
+    # the steps that must move: neither held nor at a clamp (a saturated loop's OP rests at
+    # its limit for up to four fifths of a window, leaving it for a sample or two at times)
+    off = _mask(n, runs) | np.isin(op, extremes)
+    rest = ~(off[1:] | off[:-1])
     if rest.any() and float(np.mean(np.diff(op)[rest] == 0.0)) > 1.0 - p.held_rest_moving:
         return np.zeros(n, dtype=bool)
     return held

@@ -92,6 +92,27 @@ def test_an_output_held_still_under_a_live_pv_reads_as_manual_without_the_mode_f
     assert "held_output_fraction" not in check_window(PV, clamp).indices
 
 
+def test_an_unflagged_manual_stretch_is_found_under_a_compressed_pv_or_beside_a_clamp() -> None:
+    """A historian's compressed PV changes on a fifth of the steps, held OP or not: PV needs
+    to move inside the hold about as often as elsewhere, not on half the steps. A saturated
+    loop's OP rests at its limit and leaves it for a sample at times: those samples are the
+    clamp's, not steps where OP should move."""
+    op = OP.copy()
+    op[600:1000] = op[600]  # 20 % in manual, no mode tag
+    held_pv = PV[np.arange(N) // 5 * 5]  # a value stored every fifth sample, held between
+    rep = check_window(held_pv, op)
+    assert rep.verdict == "manual_mode" and rep.indices["held_output_fraction"] == 0.2, rep.notes
+    clamped = op.copy()
+    top = float(OP.max()) + 1.0
+    clamped[1100:1900] = top  # at its limit 40 % of the window,
+    clamped[1100:1900:40] = top - 0.01  # leaving it for a sample now and then
+    rep = check_window(PV, clamped)
+    assert rep.indices["held_output_fraction"] == 0.2, rep.notes
+    stalled = PV.copy()
+    stalled[600:1000] = stalled[600]  # PV still too: a stalled record, not an operator
+    assert "held_output_fraction" not in check_window(stalled, op).indices
+
+
 def _frozen_at(start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
     """PV frozen over [start, stop) as the controller sees it: its error is constant there,
     so its integral action ramps OP on a straight line."""
