@@ -162,9 +162,10 @@ def fit_shape_net(
     torch.set_num_threads(FIT_THREADS)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(seed)
-    # a window the checks stop on after ``chain._prepare`` left its manual samples out has
-    # no shape (NaN throughout: 15 of seed 101's 256,000); it is fitted as a flat one, as its
-    # missing scalars are, rather than turning every weight into NaN
+    # a window the checks stop on after leaving a frozen transmitter's samples out as missing
+    # (``window.frozen_pv``, since the fifty-second session) has no shape, NaN throughout: 15
+    # of seed 101's 256,000, short interpolated or compressed records; it is fitted as a flat
+    # one, as its missing scalars are, rather than turning every weight into NaN
     x = torch.nan_to_num(torch.tensor(shapes.channels.astype(np.float32)))
     s = torch.nan_to_num(torch.tensor(shapes.scalars))
     y = torch.tensor(shapes.y)
