@@ -10,7 +10,7 @@ square loop's PV and OP as a sticky valve's (Horch 1999 warns of it), and neithe
 fitted on such loads.
 
 Every external-disturbance window of corpus ``--seed`` among its first ``--windows`` is
-simulated again with its periodic loads replaced by one of the same period and peak:
+simulated again with its periodic loads replaced by one of the same period and swing:
 ``sine`` (as drawn, the reference), ``square`` (high for 30-70 % of each period, edges
 through a lag of 1-15 % of the period) and ``triangle`` (rising for 30-70 %, the same lag),
 the rest of the window as drawn. A window whose control error does not rise by
@@ -41,7 +41,7 @@ from model_option import chosen_model
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.corpus import VISIBLY_FAULTY, CorpusCase, draw_cases, fault_and_twin
-from plantcheck.simulator.loop import Disturbance, LoopConfig, simulate_loop
+from plantcheck.simulator.loop import Disturbance, LoopConfig, LoopRecord, simulate_loop
 
 SHAPES = ("sine", "square", "triangle")
 DECISIONS = ("rules", "learned")
@@ -53,8 +53,9 @@ EDGE_LAG = (0.01, 0.15)
 
 def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfig:
     """``cfg`` with its periodic loads (those with a sine amplitude) replaced by one load of
-    ``shape``, the first one's period, peak and entry point; ``sine`` keeps drawn sines as
-    they are (with a third harmonic where drawn) and makes a drawn limit cycle a sine."""
+    ``shape``, the first one's period, swing (trough to peak) and entry point; ``sine`` keeps
+    drawn sines as they are (a third harmonic where drawn) and makes a drawn limit cycle a
+    sine."""
     periodic = [d for d in cfg.disturbances if d.sine_amplitude]
     others = tuple(d for d in cfg.disturbances if not d.sine_amplitude)
     if not periodic or (shape == "sine" and periodic[0].shape == "sine"):
@@ -75,16 +76,17 @@ def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfi
 
 
 def read_window(
-    case: CorpusCase, seed: int, params: dict[str, ChainParams]
+    case: CorpusCase, drawn: LoopRecord, seed: int, params: dict[str, ChainParams]
 ) -> dict[str, dict[str, str] | None]:
-    """Per shape, each decision's cause of the window under that load (None: hidden)."""
+    """Per shape, each decision's cause of the window under that load (None: hidden);
+    ``drawn``, the window's record as the corpus drew it, read where the load stays."""
     assert case.twin is not None
     twin = simulate_loop(case.twin)
     rng = np.random.default_rng([seed, case.index])
     out: dict[str, dict[str, str] | None] = {}
     for shape in SHAPES:
         cfg = reshaped(case.config, shape, rng)
-        rec = simulate_loop(cfg)
+        rec = drawn if cfg is case.config else simulate_loop(cfg)
         shown = fault_and_twin(replace(case, config=cfg), rec, twin)
         if shown is not None and shown[0] < VISIBLY_FAULTY * shown[1]:
             out[shape] = None
@@ -133,10 +135,10 @@ def main() -> None:
     hidden: collections.Counter[str] = collections.Counter()
     t0 = time.perf_counter()
     read = 0
-    for case, _ in draw_cases(args.seed, range(args.windows)):
+    for case, drawn in draw_cases(args.seed, range(args.windows)):
         if case.cause != "external_disturbance":
             continue
-        for shape, causes in read_window(case, args.seed, params).items():
+        for shape, causes in read_window(case, drawn, args.seed, params).items():
             if causes is None:
                 hidden[shape] += 1
                 continue

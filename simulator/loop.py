@@ -78,25 +78,24 @@ class Disturbance:
     sine_amplitude: float = 0.0
     sine_period_s: float = 100.0
     shape: Literal["sine", "square", "triangle"] = "sine"
-    """The periodic load's waveform, of peak ``sine_amplitude`` about its mean: ``square``, a
-    sticky valve or an on/off unit upstream jumping between two positions (high for ``duty``
-    of each period); ``triangle``, a level or an integral action upstream ramping between
-    them (rising for ``duty`` of each period); each through a first-order lag of
-    ``edge_lag_s``, the process between. A plant's periodic loads are more often another
-    loop's limit cycle than a sine (Thornhill & Horch 2007)."""
+    """The periodic load's waveform, twice ``sine_amplitude`` from trough to peak, about a
+    zero mean: ``square``, a sticky valve or an on/off unit upstream jumping between two
+    positions (high for ``duty`` of each period); ``triangle``, a level or an integral action
+    upstream ramping between them (rising for ``duty`` of each period); each through a
+    first-order lag of ``edge_lag_s``, the process between. A plant's periodic loads are more
+    often another loop's limit cycle than a sine (Thornhill & Horch 2007)."""
     duty: float = 0.5
     edge_lag_s: float = 0.0
+    random_walk_std: float = 0.0
+    filtered_noise_std: float = 0.0
+    filtered_noise_tau_s: float = 20.0
+    steps: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if not 0.0 < self.duty < 1.0:
             raise ValueError(f"duty: {self.duty}; give the share of a period, between 0 and 1")
         if self.edge_lag_s < 0.0:
             raise ValueError(f"edge_lag_s: {self.edge_lag_s}; give a lag of 0 s or more")
-
-    random_walk_std: float = 0.0
-    filtered_noise_std: float = 0.0
-    filtered_noise_tau_s: float = 20.0
-    steps: tuple[tuple[float, float], ...] = ()
 
 
 FlowCharacteristic = Literal["linear", "equal_percentage", "quick_opening"]
@@ -213,9 +212,9 @@ def _disturbance_signal(d: Disturbance, t: FloatArray, rng: np.random.Generator)
 
 
 def _limit_cycle(d: Disturbance, t: FloatArray, phase: float) -> FloatArray:
-    """A square or triangular wave of unit peak about its mean (``Disturbance.shape``), at
-    ``phase`` (cycles) when t = 0, through a first-order lag of ``edge_lag_s`` started at its
-    first value."""
+    """A square or triangular wave (``Disturbance.shape``) 2 from trough to peak about a zero
+    mean, at ``phase`` (cycles) when t = 0, through a first-order lag of ``edge_lag_s``
+    started at its first value."""
     at = (t / d.sine_period_s + phase) % 1.0
     high = at < d.duty
     if d.shape == "square":

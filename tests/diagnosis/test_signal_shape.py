@@ -210,3 +210,27 @@ def test_a_scalar_outside_the_fits_range_reads_as_its_nearest_end() -> None:
         shape_log_probabilities(net, ShapeInput(chans, beyond)),
         shape_log_probabilities(net, ShapeInput(chans, inside)),
     )
+
+
+def test_a_window_without_a_shape_leaves_the_network_finite() -> None:
+    """A window the checks stop on after leaving a frozen transmitter out has no shape (NaN
+    throughout); the network is fitted on every window, judged or not, and one such window
+    turned every weight into NaN from the first epoch (fifty-fourth session's refit)."""
+    pytest.importorskip("torch", reason="PyTorch (the fit extra) is not installed")
+    from plantcheck.service.shape_model_fit import CorpusShapes, fit_shape_net
+
+    rng = np.random.default_rng(7)
+    n = 200
+    channels = rng.normal(size=(n, 3, SHAPE_SAMPLES)).astype(np.float16)
+    channels[5] = np.nan
+    judged = np.ones(n, dtype=bool)
+    judged[5] = False
+    shapes = CorpusShapes(
+        channels,
+        rng.normal(size=(n, len(SCALARS))).astype(np.float32),
+        rng.integers(0, len(CLASSES), n),
+        judged,
+    )
+    net = fit_shape_net(shapes)
+    for w in net.conv_w + net.dense_w + net.conv_b:
+        assert np.isfinite(w).all()
