@@ -293,13 +293,11 @@ def _prepare(
     """What the chain judges of a window, before its checks: the manual time a held OP
     shows joined to the mode flag's, then the samples after the last retuning, then the
     longest automatic stretch where the window is mostly in automatic (``automatic_stretch``).
-    The fit's entry points (``chain_evidence``, ``chain_shape_input``) do not call it yet:
-    their evidence is the shipped model's (``EVIDENCE_VERSION``), and the next refit should
-    read it through this step (raising the version), so that the model is fitted on the
-    samples a diagnosis weighs. Read through it, the evidence of 13 of the 272,000 windows
-    the fit reads would change (fifty-third session: a retuning the simulation never made,
-    read on quantised or compressed records, 12 of them beside a clamp); before that
-    session's controller-change confirmation, 13 of the 4,000 of seeds 202 and 303 alone."""
+    The fit's entry points (``chain_evidence``, ``chain_shape_input``) read the window through
+    it too (evidence version 10), so that the model is fitted on the samples a diagnosis
+    weighs: before, 13 of the 272,000 windows the fit reads were weighed whole where a
+    diagnosis cut them (fifty-third session: a retuning the simulation never made, read on
+    quantised or compressed records, 12 of them beside a clamp)."""
     pv = np.asarray(pv, dtype=np.float64)
     op = np.asarray(op, dtype=np.float64)
     auto = None if auto is None else np.asarray(auto, dtype=bool)
@@ -509,10 +507,9 @@ def chain_evidence(
     window with nothing to weigh: what ``plantcheck model fit`` learns from. The rules
     decide here (``params.cause_model`` is ignored) and S/J are not estimated."""
     p = replace(params or default_chain_params(), cause_model=None)
-    pv = np.asarray(pv, dtype=np.float64)
-    op = np.asarray(op, dtype=np.float64)
-    win = check_window(pv, op, sp, auto, p.window)
-    diag = DiagnosisDraft(loop_type, "standard", int(pv.size), ts, "ok", 0.0, False)
+    prep = _prepare(pv, op, sp, auto, ts, p)
+    win = check_window(prep.pv, prep.op, prep.sp, prep.auto, p.window)
+    diag = DiagnosisDraft(loop_type, "standard", int(prep.pv.size), ts, "ok", 0.0, False)
     run = _run_chain(_Run(win, ts, loop_type, p, False, False, diag), gather=True)
     return diag.cause, (_evidence(run) if _judged(win) else None)
 
@@ -524,13 +521,16 @@ def chain_shape_input(
     auto: BoolArray | None = None,
     loop_type: str = "other",
     params: ChainParams | None = None,
+    *,
+    ts: float,
 ) -> tuple[ShapeInput, bool]:
     """The shape network's input of one window as a diagnosis reads it (the window checks'
-    cleaned signals), and whether the window holds evidence to weigh (``chain_evidence`` gives
-    None where it does not): what ``plantcheck model fit`` fits the network on."""
+    cleaned signals of what ``_prepare`` keeps; ``ts``, s, for its retuning search), and
+    whether the window holds evidence to weigh (``chain_evidence`` gives None where it does
+    not): what ``plantcheck model fit`` fits the network on."""
     p = params or default_chain_params()
-    win = check_window(np.asarray(pv, dtype=np.float64), np.asarray(op, dtype=np.float64),
-                       sp, auto, p.window)  # fmt: skip
+    prep = _prepare(pv, op, sp, auto, ts, p)
+    win = check_window(prep.pv, prep.op, prep.sp, prep.auto, p.window)
     return _shape_input(win, loop_type), _judged(win)
 
 

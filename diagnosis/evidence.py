@@ -23,8 +23,10 @@ from plantcheck.diagnosis.signal_tools import (
     std,
 )
 
-EVIDENCE_VERSION = 9
+EVIDENCE_VERSION = 10
 """Raised whenever what the chain gathers changes: cached corpus evidence is then redrawn.
+Version 10: the window is read through ``chain._prepare`` as a diagnosis reads it (the held
+OP as manual time, the cut after a retuning, the longest automatic stretch).
 Version 9: the two-model test of the stick-slip events reads residuals below a billionth of
 the PV's level a sample as rounding (``stick_slip.ROUNDING_LEVEL``): noise-free records'
 events no longer rest on the order of a sum.

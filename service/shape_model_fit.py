@@ -30,8 +30,9 @@ from plantcheck.simulator.corpus import (
 )
 from plantcheck.simulator.loop import LoopRecord
 
-SHAPE_VERSION = 1
-"""Raised whenever ``signal_shape.shape_input`` changes: cached shapes are then redrawn."""
+SHAPE_VERSION = 2
+"""Raised whenever ``signal_shape.shape_input`` or what it is given changes: cached shapes
+are then redrawn. Version 2: the window read through ``chain._prepare``, as the evidence."""
 
 CHANNELS = (3, 32, 64, 96, 128)
 """The convolutions' channels, input first. Twice the width of the first networks (16, 32,
@@ -72,7 +73,9 @@ class CorpusShapes:
 def _shape(
     seed: int, index: int, case: CorpusCase, rec: LoopRecord
 ) -> tuple[int, NDArray[np.float64], NDArray[np.float64], bool]:
-    x, judged = chain_shape_input(rec.pv, rec.op, rec.sp, loop_type=case.loop_type)
+    x, judged = chain_shape_input(
+        rec.pv, rec.op, rec.sp, loop_type=case.loop_type, ts=case.config.sample_time_s
+    )
     return CLASSES.index(case.cause), x.channels, x.scalars, judged
 
 

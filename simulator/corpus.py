@@ -41,7 +41,7 @@ from plantcheck.simulator.plant_windows import steady_op
 
 T = TypeVar("T")
 
-CORPUS_VERSION = 8
+CORPUS_VERSION = 10
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
 
 CLASSES: tuple[str, ...] = (
@@ -163,6 +163,18 @@ def _periodic_load(
     where = "load" if rng.uniform() < 0.6 else "output"
     size = amp / gain if where == "load" else amp
     first = Disturbance(where=where, sine_amplitude=size, sine_period_s=period)  # type: ignore[arg-type]
+    shape = rng.uniform()
+    if shape >= 0.4:
+        # another loop's limit cycle (version 10): a square wave, or a triangle where a level
+        # or an integral action between integrates it, its edges through a lag
+        return (
+            replace(
+                first,
+                shape="square" if shape < 0.7 else "triangle",
+                duty=float(rng.uniform(0.3, 0.7)),
+                edge_lag_s=period * _log_uniform(rng, 0.01, 0.15),
+            ),
+        )
     if rng.uniform() < 0.3:
         return (first, replace(first, sine_amplitude=amp / 3.0, sine_period_s=period / 3.0))
     return (first,)

@@ -111,7 +111,7 @@ def test_a_diagnosis_weighs_the_evidence_the_corpus_gives_the_fit() -> None:
                      params=ChainParams(decide_by="learned"))  # fmt: skip
         if d.cause not in CLASSES:  # too short to judge or far from its baseline: re-read
             continue
-        shape, judged = chain_shape_input(rec.pv, rec.op, rec.sp, loop_type=case.loop_type)
+        shape, judged = chain_shape_input(rec.pv, rec.op, rec.sp, loop_type=case.loop_type, ts=ts)
         assert judged
         probs = decide(model, evidence_vector(ev), shape).probabilities
         assert d.confidence == float(probs.max()), (i, case.family)
