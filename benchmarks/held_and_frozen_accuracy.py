@@ -43,16 +43,15 @@ import argparse
 import collections
 import time
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
-from model_option import chosen_model
+from model_option import BOTH_DECISIONS as DECISIONS
+from model_option import corpus_scan
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.corpus import CLASSES, CorpusCase, draw_cases
 from plantcheck.simulator.loop import LoopConfig, LoopRecord, manual_mask, simulate_loop
 
-DECISIONS = ("rules", "learned")
 WINDOW_VERDICTS = ("manual_mode", "data_quality", "insufficient_data")
 
 
@@ -166,16 +165,7 @@ def table(counts: Counts, found: collections.Counter[str], windows: int) -> None
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seed", type=int, default=505, help="corpus seed (default 505)")
-    ap.add_argument("--windows", type=int, default=600, help="corpus windows read (default 600)")
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
-    args = ap.parse_args()
-    if args.windows < 1:
-        ap.error(f"--windows {args.windows}: give 1 or more")
-    model = chosen_model(args.model)
-    if model is None:
-        ap.error("no model file to read the learned decision from: give --model FILE")
-    params = {name: ChainParams(cause_model=model, decide_by=name) for name in DECISIONS}
+    args, params = corpus_scan(ap, 600, "read")
     counts: Counts = collections.defaultdict(collections.Counter)
     found: collections.Counter[str] = collections.Counter()
     t0 = time.perf_counter()

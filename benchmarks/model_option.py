@@ -32,3 +32,28 @@ def add_decision_options(ap: argparse.ArgumentParser) -> None:
 def decision_params(args: argparse.Namespace) -> ChainParams:
     """The chain settings of ``add_decision_options``' parsed ``args``."""
     return ChainParams(cause_model=chosen_model(args.model), decide_by=args.decision)
+
+
+BOTH_DECISIONS = ("rules", "learned")
+
+
+def corpus_scan(
+    ap: argparse.ArgumentParser, windows: int, what: str
+) -> tuple[argparse.Namespace, dict[str, ChainParams]]:
+    """``--seed`` (default 505), ``--windows`` (``windows``: corpus windows ``what``) and
+    ``--model FILE`` for a benchmark that reads corpus windows by both decisions: the parsed
+    arguments and each decision's chain settings; a bad count or no model file ends it with
+    a message naming the option."""
+    ap.add_argument("--seed", type=int, default=505, help="corpus seed (default 505)")
+    ap.add_argument(
+        "--windows", type=int, default=windows, help=f"corpus windows {what} (default {windows})"
+    )
+    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
+    args = ap.parse_args()
+    if args.windows < 1:
+        ap.error(f"--windows {args.windows}: give 1 or more")
+    model = chosen_model(args.model)
+    if model is None:
+        ap.error("no model file to read the learned decision from: give --model FILE")
+    params = {name: ChainParams(cause_model=model, decide_by=name) for name in BOTH_DECISIONS}
+    return args, params

@@ -34,17 +34,16 @@ import collections
 import math
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
-from model_option import chosen_model
+from model_option import BOTH_DECISIONS as DECISIONS
+from model_option import corpus_scan
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.corpus import VISIBLY_FAULTY, CorpusCase, draw_cases, fault_and_twin
 from plantcheck.simulator.loop import Disturbance, LoopConfig, LoopRecord, simulate_loop
 
 SHAPES = ("sine", "square", "triangle")
-DECISIONS = ("rules", "learned")
 DUTY = (0.3, 0.7)
 """Share of each period the wave is high (square) or rising (triangle)."""
 EDGE_LAG = (0.01, 0.15)
@@ -117,18 +116,7 @@ def table(
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seed", type=int, default=505, help="corpus seed (default 505)")
-    ap.add_argument(
-        "--windows", type=int, default=1200, help="corpus windows scanned (default 1200)"
-    )
-    ap.add_argument("--model", type=Path, help="a model file (plantcheck model fit --out)")
-    args = ap.parse_args()
-    if args.windows < 1:
-        ap.error(f"--windows {args.windows}: give 1 or more")
-    model = chosen_model(args.model)
-    if model is None:
-        ap.error("no model file to read the learned decision from: give --model FILE")
-    params = {name: ChainParams(cause_model=model, decide_by=name) for name in DECISIONS}
+    args, params = corpus_scan(ap, 1200, "scanned")
     counts: dict[tuple[str, str], collections.Counter[str]] = collections.defaultdict(
         collections.Counter
     )
