@@ -40,14 +40,21 @@ from model_option import BOTH_DECISIONS as DECISIONS
 from model_option import corpus_scan
 
 from plantcheck.diagnosis import ChainParams, diagnose
-from plantcheck.simulator.corpus import VISIBLY_FAULTY, CorpusCase, draw_cases, fault_and_twin
+from plantcheck.simulator.corpus import (
+    LIMIT_CYCLE_DUTY as DUTY,
+)
+from plantcheck.simulator.corpus import (
+    LIMIT_CYCLE_EDGE_LAG as EDGE_LAG,
+)
+from plantcheck.simulator.corpus import (
+    VISIBLY_FAULTY,
+    CorpusCase,
+    draw_cases,
+    fault_and_twin,
+)
 from plantcheck.simulator.loop import Disturbance, LoopConfig, LoopRecord, simulate_loop
 
 SHAPES = ("sine", "square", "triangle")
-DUTY = (0.3, 0.7)
-"""Share of each period the wave is high (square) or rising (triangle)."""
-EDGE_LAG = (0.01, 0.15)
-"""The lag its edges pass through, as a share of the period (log-uniform)."""
 
 
 def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfig:

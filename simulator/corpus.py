@@ -74,6 +74,13 @@ tuning. Plants run loops far slower than the process needs: the refinery-like fl
 24's family run an integral time 12-300 times τ; corpus version 7 stopped at 5 times SIMC's,
 and no sticky valve it showed had a controller that slow (version 8, 2026-11-30)."""
 
+LIMIT_CYCLE_DUTY = (0.3, 0.7)
+"""Share of each period a limit-cycle load is high (square) or rising (triangle), drawn
+uniformly (version 10)."""
+LIMIT_CYCLE_EDGE_LAG = (0.01, 0.15)
+"""The lag a limit-cycle load's edges pass through, as a share of its period, drawn
+log-uniformly (version 10)."""
+
 MIN_SAMPLES, MAX_SAMPLES = 150, 12_000
 """Window lengths, drawn log-uniformly: short slow records to a day at a few seconds."""
 
@@ -171,8 +178,8 @@ def _periodic_load(
             replace(
                 first,
                 shape="square" if shape < 0.7 else "triangle",
-                duty=float(rng.uniform(0.3, 0.7)),
-                edge_lag_s=period * _log_uniform(rng, 0.01, 0.15),
+                duty=float(rng.uniform(*LIMIT_CYCLE_DUTY)),
+                edge_lag_s=period * _log_uniform(rng, *LIMIT_CYCLE_EDGE_LAG),
             ),
         )
     if rng.uniform() < 0.3:
