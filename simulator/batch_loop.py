@@ -15,8 +15,10 @@ or, where a loop never takes it, neutral constants whose result can differ from 
 only in the sign of a zero that is then added to a non-zero value.
 
 Loops with an actuator model or a non-linear flow characteristic (the served plant's, never
-the corpus'), or with manual or frozen-transmitter stretches, are stepped one at a time by
-``simulate_loop``.
+the corpus') are stepped one at a time by ``simulate_loop``. Manual and frozen-transmitter
+stretches (``LoopConfig.manual``, ``frozen_pv``) are masks over the batch's samples: the
+operator takes over the last OP where a manual stretch's segment starts, the transmitter holds
+the last reading where a frozen one starts, as ``loop._run_stretches`` switches between runs.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from plantcheck.simulator.loop import (
     loop_inputs,
     loop_record,
     simulate_loop,
+    stretch_samples,
 )
 
 STICKY_MODELS = ("kano", "he", "choudhury", "backlash")
@@ -72,7 +75,7 @@ def simulate_loops(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
     out: list[LoopRecord | None] = [None] * len(cfgs)
     groups: dict[bool, list[int]] = {False: [], True: []}
     for i, c in enumerate(cfgs):
-        if c.actuator is not None or c.characteristic != "linear" or c.manual or c.frozen_pv:
+        if c.actuator is not None or c.characteristic != "linear":
             out[i] = simulate_loop(c)
         else:
             groups[c.valve != "linear"].append(i)
@@ -346,6 +349,24 @@ def _constants(cfgs: Sequence[LoopConfig]) -> tuple[int, _Loops]:
     )
 
 
+def _stretch_masks(cfgs: Sequence[LoopConfig]) -> dict[int, tuple[BoolArray, ...]]:
+    """For each loop with manual or frozen-transmitter stretches, by its place in ``cfgs``:
+    over its run, warm-up included, where it is in manual, where a segment of
+    ``loop._run_stretches`` in manual starts after the first sample (the operator takes over
+    the last OP), where its transmitter is frozen, and where a freeze starts (the reading
+    then held)."""
+    out = {}
+    for b, c in enumerate(cfgs):
+        if c.manual or c.frozen_pv:
+            manual, frozen = stretch_samples(c, c.manual), stretch_samples(c, c.frozen_pv)
+            starts = np.zeros_like(manual)
+            starts[1:] = (manual[1:] != manual[:-1]) | (frozen[1:] != frozen[:-1])
+            freezes = frozen.copy()
+            freezes[1:] &= ~frozen[:-1]
+            out[b] = (manual, manual & starts, frozen, freezes)
+    return out
+
+
 def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
     """Simulate loops side by side, ``ClosedLoop.run``'s arithmetic
     (the constants of ``_constants``). The loops are taken longest first, and a loop that has
@@ -378,12 +399,18 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
     pv_blk = np.empty((BLOCK, size))
     op_blk = np.empty((BLOCK, size))
     drive = np.zeros((4, BLOCK, size))  # set point, load, output disturbance, noise
+    stretches = _stretch_masks(cfgs)
+    # in manual, where an operator takes over, frozen, where a transmitter freezes
+    modes = np.zeros((4, BLOCK, size), dtype=bool)
     alive = size
     c = full
     x1 = np.zeros(size)
     x2 = np.zeros(size)
     integral = full.u0.copy()
     pv_f = np.zeros(size)
+    pv_last = full.sp0.copy()  # a transmitter frozen from the start reads the set point
+    u_last = full.u0.copy()
+    frozen_at = np.zeros(size)
     with np.errstate(all="ignore"):  # a diverging loop overflows as Python's floats do
         for k0 in range(0, lengths[0], BLOCK):
             kb = min(BLOCK, lengths[0] - k0)
@@ -392,6 +419,9 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
                 count = min(kb, lengths[b] - k0)
                 for j, signal in enumerate(inputs[b][2:]):
                     drive[j, :count, b] = signal[k0 : k0 + count]
+                if b in stretches:
+                    for j, mask in enumerate(stretches[b]):
+                        modes[j, :count, b] = mask[k0 : k0 + count]
             for j in range(kb):
                 k = k0 + j
                 if lengths[alive - 1] <= k:
@@ -401,10 +431,18 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
                     for v in sticky:
                         v.narrow(alive)
                     x1, x2, integral, pv_f = x1[:alive], x2[:alive], integral[:alive], pv_f[:alive]
+                    pv_last, u_last = pv_last[:alive], u_last[:alive]
+                    frozen_at = frozen_at[:alive]
                 y = np.where(c.lag2, x2 + c.zero * (x1 - x2) / c.tau2, x1)
                 pv = c.sp0 + y + drive[2, j, :alive] + drive[3, j, :alive]
                 pv = c.a_filter * (pv if k == 0 else pv_f) + c.one_less * pv
                 pv_f = pv
+                if stretches:
+                    manual, takes, frozen, freezes = modes[:, j, :alive]
+                    frozen_at = np.where(freezes, pv_last, frozen_at)
+                    pv = np.where(frozen, frozen_at, pv)
+                    pv_last = pv
+                    integral = np.where(takes, u_last, integral)
                 e = drive[0, j, :alive] - pv
                 push = c.kc * e
                 u_unsat = integral + push
@@ -415,6 +453,10 @@ def _batch(cfgs: Sequence[LoopConfig]) -> list[LoopRecord]:
                 # of a clamped excess (>= 1e-16) and a push (>= 1e-16, or 0) underflows
                 over = u_unsat - u
                 windup = (over * push < 0) | (over == 0)
+                if stretches:  # manual: OP holds, the integral with it
+                    u = np.where(manual, np.minimum(np.maximum(integral, c.op_min), c.op_max), u)
+                    windup &= ~manual
+                    u_last = u
                 integral = np.where(windup, integral + c.ki * e, integral)
                 m = u if within else _clip(u)
                 if sticky:

@@ -438,7 +438,7 @@ def simulate_loop(cfg: LoopConfig) -> LoopRecord:
     return loop_record(cfg, rng, t, sp, pv, op, mv)
 
 
-def _stretch_samples(cfg: LoopConfig, stretches: tuple[tuple[float, float], ...]) -> BoolArray:
+def stretch_samples(cfg: LoopConfig, stretches: tuple[tuple[float, float], ...]) -> BoolArray:
     """Which samples of a run, warm-up included, ``stretches`` (s of the record) cover."""
     n_total = cfg.n_samples + cfg.warmup_samples
     k = np.arange(n_total) - cfg.warmup_samples
@@ -452,7 +452,7 @@ def _stretch_samples(cfg: LoopConfig, stretches: tuple[tuple[float, float], ...]
 def manual_mask(cfg: LoopConfig) -> BoolArray:
     """True on the record's samples (after warm-up) in which the loop is in manual
     (``LoopConfig.manual``): what a historian's mode tag would say, where a plant keeps one."""
-    return _stretch_samples(cfg, cfg.manual)[cfg.warmup_samples :]
+    return stretch_samples(cfg, cfg.manual)[cfg.warmup_samples :]
 
 
 def _run_stretches(
@@ -460,8 +460,8 @@ def _run_stretches(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``ClosedLoop.run`` over the run's inputs, switching to manual and freezing the
     transmitter at the last reading over ``cfg.manual`` and ``cfg.frozen_pv``."""
-    manual = _stretch_samples(cfg, cfg.manual)
-    frozen = _stretch_samples(cfg, cfg.frozen_pv)
+    manual = stretch_samples(cfg, cfg.manual)
+    frozen = stretch_samples(cfg, cfg.frozen_pv)
     state = manual.astype(np.int8) * 2 + frozen
     cuts = [0, *(np.flatnonzero(np.diff(state)) + 1).tolist(), state.size]
     loop = ClosedLoop(cfg)

@@ -71,6 +71,32 @@ def test_a_batch_gives_every_loop_the_record_it_gets_alone() -> None:
     assert len(moved) == 8
 
 
+def test_manual_and_frozen_stretches_are_stepped_in_the_batch_as_alone() -> None:
+    """Stretches of every kind (from the first sample, to the record's end, a freeze inside a
+    manual stretch and one across its end, back to back) on loops of every family, sticky
+    valves and clamped outputs among them, the loops ending at different samples."""
+    cfgs = corpus_configs()
+    kinds: list[dict[str, tuple[tuple[float, float], ...]]] = [
+        {"manual": ((0.0, 0.2),)},
+        {"manual": ((0.3, 0.5),), "frozen_pv": ((0.35, 0.4), (0.45, 0.6))},
+        {"frozen_pv": ((0.0, 0.1), (0.1, 0.3))},
+        {"manual": ((0.1, 0.2), (0.2, 0.3)), "frozen_pv": ((0.8, 1.0),)},
+        {"frozen_pv": ((0.5, 0.7),), "manual": ((0.6, 1.0),)},
+    ]
+    stretched = []
+    for i, c in enumerate(cfgs):
+        span = c.n_samples * c.sample_time_s
+        kind = kinds[i % len(kinds)]
+        stretched.append(replace(c, **{k: tuple((a * span, b * span) for a, b in v)
+                                       for k, v in kind.items()}))  # fmt: skip
+    stretched.append(cfgs[0])  # a loop without stretches among them
+    alone = [simulate_loop(c) for c in stretched]
+    together = _batch(stretched)
+    differ = [i for i, (a, b) in enumerate(zip(alone, together, strict=True)) if not same(a, b)]
+    assert not differ
+    assert all(np.ptp(r.pv) > 0 for r in together)  # not every loop frozen throughout
+
+
 def test_loops_the_batch_cannot_step_are_simulated_alone_in_place() -> None:
     """An actuator model or a valve characteristic is stepped by ``simulate_loop``; the
     records come back in the order asked, however the loops were batched."""
