@@ -355,7 +355,7 @@ def _stretch_masks(cfgs: Sequence[LoopConfig]) -> dict[int, tuple[BoolArray, ...
     ``loop._run_stretches`` in manual starts after the first sample (the operator takes over
     the last OP), where its transmitter is frozen, and where a freeze starts (the reading
     then held)."""
-    out = {}
+    out: dict[int, tuple[BoolArray, ...]] = {}
     for b, c in enumerate(cfgs):
         if c.manual or c.frozen_pv:
             manual, frozen = stretch_samples(c, c.manual), stretch_samples(c, c.frozen_pv)
