@@ -92,6 +92,7 @@ LEFT_OUT: tuple[tuple[str, str], ...] = (
     ("sp", "cascade"),
     ("tuning", "detuned"),
     ("load", "random_walk"),
+    ("operation", "manual"),
 )
 """The families left out one at a time (issue 46 item 6)."""
 

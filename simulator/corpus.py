@@ -1,6 +1,7 @@
 """A training corpus randomised the way plants differ (issue 46): labelled windows from every
-process family, valve model, load, set-point pattern, output limit and recording, drawn
-independently of the class so that the decision learned on it cannot lean on any one of them.
+process family, valve model, load, set-point pattern, output limit, recording and operation
+(automatic throughout, an unflagged manual stretch, a frozen transmitter), drawn independently
+of the class so that the decision learned on it cannot lean on any one of them.
 
 Each window is reproducible from ``(seed, index)`` alone, so a corpus is generated in parallel
 and any window can be drawn again. The family each window came from is part of its label
@@ -41,7 +42,7 @@ from plantcheck.simulator.plant_windows import steady_op
 
 T = TypeVar("T")
 
-CORPUS_VERSION = 10
+CORPUS_VERSION = 11
 """Raised whenever a draw changes: cached evidence of another version is not reused."""
 
 CLASSES: tuple[str, ...] = (
@@ -54,7 +55,9 @@ CLASSES: tuple[str, ...] = (
 )
 """The causes a simulated loop is built to show (contracts §2's first six)."""
 
-FAMILY_KEYS: tuple[str, ...] = ("process", "valve", "load", "sp", "tuning", "limit", "recording")
+FAMILY_KEYS: tuple[str, ...] = (
+    "process", "valve", "load", "sp", "tuning", "limit", "recording", "operation"
+)  # fmt: skip
 """The family axes of a window's label; each has the values listed in ``FAMILIES``."""
 
 FAMILIES: dict[str, tuple[str, ...]] = {
@@ -65,7 +68,19 @@ FAMILIES: dict[str, tuple[str, ...]] = {
     "tuning": ("simc", "detuned", "near_limit", "sluggish"),
     "limit": ("free", "at_100", "anywhere"),
     "recording": ("continuous", "quantised", "compressed", "interpolated"),
+    "operation": ("auto", "manual", "frozen"),
 }
+
+OPERATION_SHARES = (0.8, 0.1, 0.1)
+"""How often a window runs in automatic throughout, holds an unflagged manual stretch, or holds
+a frozen transmitter (``FAMILIES["operation"]``; version 11). Operators put loops in manual
+for a while and historians rarely keep the mode; transmitters freeze (Thornhill & Horch 2007).
+A stretch short enough that the window's cause can still be judged around it: a longer one is
+the window checks' to name (``manual_mode``, ``data_quality``), not the decision's."""
+MANUAL_SHARE = (0.02, 0.09)
+"""Share of a window a manual stretch covers, drawn log-uniformly (version 11)."""
+FROZEN_SHARE = (0.01, 0.04)
+"""Share of a window a frozen transmitter covers, drawn log-uniformly (version 11)."""
 
 DETUNABLE = frozenset({"stiction", "external_disturbance", "saturation"})
 """Classes whose controller is drawn detuned (gain × 0.03-0.6, integral time × 1-30 of SIMC's,
@@ -183,7 +198,9 @@ def _periodic_load(
             ),
         )
     if rng.uniform() < 0.3:
-        return (first, replace(first, sine_amplitude=amp / 3.0, sine_period_s=period / 3.0))
+        # the third harmonic a third of the fundamental, at the same place (version 11: it was
+        # a third of the PV-unit amplitude whichever place the load entered)
+        return (first, replace(first, sine_amplitude=size / 3.0, sine_period_s=period / 3.0))
     return (first,)
 
 
@@ -516,6 +533,13 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         pv_filter_s=pv_filter,
         seed=int(rng.integers(1 << 30)),
     )
+    # drawn after everything else, so a window in automatic is the window of version 10
+    operation = str(rng.choice(FAMILIES["operation"], p=OPERATION_SHARES))
+    if operation != "auto":
+        share = _log_uniform(rng, *(MANUAL_SHARE if operation == "manual" else FROZEN_SHARE))
+        start = float(rng.uniform(0.0, 1.0 - share)) * dur
+        stretch = ((start, start + share * dur),)
+        cfg = replace(cfg, **{"manual" if operation == "manual" else "frozen_pv": stretch})
     twin = None
     if cause == "stiction":
         twin = replace(cfg, valve="linear", S=0.0, J=0.0)
@@ -526,7 +550,7 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
     elif cause == "external_disturbance":
         twin = replace(cfg, disturbances=cfg.disturbances[periodic:])
     family = {"process": pkind, "valve": valve, "load": load_kind, "sp": sp_kind, "tuning": tuning,
-              "limit": limit_kind, "recording": rec_kind}  # fmt: skip
+              "limit": limit_kind, "recording": rec_kind, "operation": operation}  # fmt: skip
     return CorpusCase(index, cause, loop_type, cfg, family, tu, twin)
 
 

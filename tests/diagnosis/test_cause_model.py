@@ -3,6 +3,7 @@ probabilities and their evidence, and the too-short rule."""
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 
 import numpy as np
@@ -18,7 +19,13 @@ from plantcheck.diagnosis.evidence import (
     evidence_vector,
 )
 from plantcheck.simulator.cases import simc_pi
-from plantcheck.simulator.corpus import CLASSES, FAMILIES, draw_case
+from plantcheck.simulator.corpus import (
+    CLASSES,
+    FAMILIES,
+    FROZEN_SHARE,
+    MANUAL_SHARE,
+    draw_case,
+)
 from plantcheck.simulator.loop import Disturbance, LoopConfig, Process, simulate_loop
 
 
@@ -32,6 +39,33 @@ def test_corpus_windows_are_reproducible_balanced_and_labelled_by_family() -> No
     again, rec2 = draw_case(7, 5)
     assert again.config == cases[5][0].config
     np.testing.assert_array_equal(rec2.pv, cases[5][1].pv)
+
+
+def test_corpus_windows_hold_short_manual_and_frozen_stretches_their_twins_share() -> None:
+    """Unflagged manual stretches of 2-9 % of the window (OP held) and frozen transmitters of
+    1-4 % (PV held), inside the record, in windows of several classes."""
+    seen: dict[str, set[str]] = {"manual": set(), "frozen": set()}
+    for i in range(150):
+        case, rec = draw_case(13, i)
+        op = case.family["operation"]
+        if op == "auto":
+            assert not case.config.manual and not case.config.frozen_pv
+            continue
+        seen[op].add(case.cause)
+        field = "manual" if op == "manual" else "frozen_pv"
+        ((start, stop),) = getattr(case.config, field)
+        span = case.config.n_samples * case.config.sample_time_s
+        lo, hi = MANUAL_SHARE if op == "manual" else FROZEN_SHARE
+        assert start >= 0.0 and stop <= span and lo <= (stop - start) / span <= hi
+        k = slice(math.ceil(start / case.config.sample_time_s - 1e-9) + 1,
+                  math.ceil(stop / case.config.sample_time_s - 1e-9))  # fmt: skip
+        held = rec.op[k] if op == "manual" else rec.pv[k]
+        # a compressing historian draws its own line through the hold
+        if case.family["recording"] in ("continuous", "quantised"):
+            assert np.ptp(held) == 0.0, case.family
+        if case.twin is not None:  # the same operator and transmitter without the fault
+            assert getattr(case.twin, field) == getattr(case.config, field)
+    assert all(len(causes) >= 3 for causes in seen.values()), seen
 
 
 def test_saturated_corpus_windows_rest_at_their_limit() -> None:
