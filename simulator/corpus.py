@@ -539,7 +539,10 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         share = _log_uniform(rng, *(MANUAL_SHARE if operation == "manual" else FROZEN_SHARE))
         start = float(rng.uniform(0.0, 1.0 - share)) * dur
         stretch = ((start, start + share * dur),)
-        cfg = replace(cfg, **{"manual" if operation == "manual" else "frozen_pv": stretch})
+        if operation == "manual":
+            cfg = replace(cfg, manual=stretch)
+        else:
+            cfg = replace(cfg, frozen_pv=stretch)
     twin = None
     if cause == "stiction":
         twin = replace(cfg, valve="linear", S=0.0, J=0.0)
