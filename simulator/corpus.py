@@ -533,7 +533,8 @@ def _draw(rng: np.random.Generator, index: int, cause: str) -> CorpusCase:
         pv_filter_s=pv_filter,
         seed=int(rng.integers(1 << 30)),
     )
-    # drawn after everything else, so a window in automatic is the window of version 10
+    # drawn after everything else, so a window in automatic is the window of version 10 (but
+    # for the third harmonic's size, ``_periodic_load``)
     operation = str(rng.choice(FAMILIES["operation"], p=OPERATION_SHARES))
     if operation != "auto":
         share = _log_uniform(rng, *(MANUAL_SHARE if operation == "manual" else FROZEN_SHARE))
