@@ -41,12 +41,8 @@ from model_option import corpus_scan
 
 from plantcheck.diagnosis import ChainParams, diagnose
 from plantcheck.simulator.corpus import (
-    LIMIT_CYCLE_DUTY as DUTY,
-)
-from plantcheck.simulator.corpus import (
-    LIMIT_CYCLE_EDGE_LAG as EDGE_LAG,
-)
-from plantcheck.simulator.corpus import (
+    LIMIT_CYCLE_DUTY,
+    LIMIT_CYCLE_EDGE_LAG,
     VISIBLY_FAULTY,
     CorpusCase,
     draw_cases,
@@ -69,13 +65,13 @@ def reshaped(cfg: LoopConfig, shape: str, rng: np.random.Generator) -> LoopConfi
     first = periodic[0]
     if shape == "sine":
         return replace(cfg, disturbances=(replace(first, shape="sine"), *others))
-    lag = first.sine_period_s * math.exp(rng.uniform(*np.log(EDGE_LAG)))
+    lag = first.sine_period_s * math.exp(rng.uniform(*np.log(LIMIT_CYCLE_EDGE_LAG)))
     wave = Disturbance(
         where=first.where,
         sine_amplitude=first.sine_amplitude,
         sine_period_s=first.sine_period_s,
         shape=shape,  # type: ignore[arg-type]
-        duty=float(rng.uniform(*DUTY)),
+        duty=float(rng.uniform(*LIMIT_CYCLE_DUTY)),
         edge_lag_s=lag,
     )
     return replace(cfg, disturbances=(wave, *others))
